@@ -1,0 +1,713 @@
+//! [`Bus`]: one Zenoh session per node, with typed [`Publisher`]s and [`Subscriber`]s.
+
+use std::collections::VecDeque;
+use std::marker::PhantomData;
+use std::sync::atomic::{AtomicI64, AtomicU32, Ordering};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::{Duration, Instant};
+
+use teleop_msgs::{Message, unix_nanos_now};
+use zenoh::Wait;
+use zenoh::liveliness::LivelinessToken;
+use zenoh::qos::CongestionControl;
+
+use crate::attachment::{ATTACHMENT_LEN, Attachment};
+use crate::config::BusConfig;
+use crate::guard::{GuardSettings, ReceiveGuard, Verdict};
+use crate::keys::{self, EntityKind, GraphEntity};
+use crate::stats::{Event, StatsSnapshot, TopicStats};
+use crate::topics::{Topic, TopicSpec};
+
+/// Errors of the bus.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum BusError {
+    #[error("zenoh: {what}: {message}")]
+    Zenoh { what: String, message: String },
+    #[error(transparent)]
+    Codec(#[from] teleop_msgs::CodecError),
+    #[error(transparent)]
+    Config(#[from] crate::config::ConfigError),
+    #[error("invalid node name `{0}`: use letters, digits and `_`")]
+    NodeName(String),
+}
+
+fn zerr(what: impl Into<String>) -> impl FnOnce(zenoh::Error) -> BusError {
+    let what = what.into();
+    move |e| BusError::Zenoh {
+        what,
+        message: e.to_string(),
+    }
+}
+
+/// A node's connection to the system.
+pub struct Bus {
+    session: zenoh::Session,
+    node_name: String,
+    zid: String,
+    config: BusConfig,
+    next_entity: AtomicU32,
+    _node_token: LivelinessToken,
+}
+
+impl std::fmt::Debug for Bus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Bus")
+            .field("node_name", &self.node_name)
+            .field("zid", &self.zid)
+            .field("domain_id", &self.config.domain_id)
+            .finish()
+    }
+}
+
+impl Bus {
+    /// Opens a Zenoh session for node `node_name` and announces the node's liveliness.
+    ///
+    /// # Errors
+    /// [`BusError`] if the name is invalid, the configuration is refused or the session
+    /// cannot open.
+    pub async fn open(node_name: &str, config: &BusConfig) -> Result<Self, BusError> {
+        if node_name.is_empty()
+            || !node_name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_')
+        {
+            return Err(BusError::NodeName(node_name.to_owned()));
+        }
+        let zcfg = config.zenoh.to_zenoh()?;
+        let session = zenoh::open(zcfg).await.map_err(zerr("open session"))?;
+        let zid = session.zid().to_string();
+        let node = GraphEntity {
+            domain_id: config.domain_id,
+            zid: zid.clone(),
+            node_id: 0,
+            entity_id: 0,
+            kind: EntityKind::Node,
+            namespace: String::new(),
+            node_name: node_name.to_owned(),
+            topic: None,
+            dds_type: None,
+            type_hash: None,
+        };
+        let token = session
+            .liveliness()
+            .declare_token(keys::liveliness_key(&node, ""))
+            .await
+            .map_err(zerr("declare node liveliness token"))?;
+        Ok(Self {
+            session,
+            node_name: node_name.to_owned(),
+            zid,
+            config: config.clone(),
+            next_entity: AtomicU32::new(1),
+            _node_token: token,
+        })
+    }
+
+    pub fn node_name(&self) -> &str {
+        &self.node_name
+    }
+    pub fn zid(&self) -> &str {
+        &self.zid
+    }
+    pub fn domain_id(&self) -> u32 {
+        self.config.domain_id
+    }
+    pub fn config(&self) -> &BusConfig {
+        &self.config
+    }
+    /// The underlying Zenoh session, for tools.
+    pub fn session(&self) -> &zenoh::Session {
+        &self.session
+    }
+
+    fn entity(&self, kind: EntityKind, spec: &TopicSpec, dds_type: String) -> GraphEntity {
+        GraphEntity {
+            domain_id: self.config.domain_id,
+            zid: self.zid.clone(),
+            node_id: 0,
+            entity_id: self.next_entity.fetch_add(1, Ordering::Relaxed),
+            kind,
+            namespace: String::new(),
+            node_name: self.node_name.clone(),
+            topic: Some(spec.name.to_owned()),
+            dds_type: Some(dds_type),
+            type_hash: Some(spec.type_hash.to_owned()),
+        }
+    }
+
+    /// Declares a publisher on `topic` with the topic's QoS.
+    ///
+    /// # Errors
+    /// [`BusError::Zenoh`] if Zenoh refuses the declaration.
+    pub async fn publisher<T: Message>(&self, topic: &Topic<T>) -> Result<Publisher<T>, BusError> {
+        let spec = topic.spec;
+        let key = keys::data_key::<T>(self.config.domain_id, spec.name);
+        let inner = self
+            .session
+            .declare_publisher(key.clone())
+            .congestion_control(CongestionControl::Drop)
+            .priority(spec.qos.priority())
+            .express(spec.qos.express())
+            .await
+            .map_err(zerr(format!("declare publisher {key}")))?;
+        let entity = self.entity(
+            EntityKind::Publisher,
+            &spec,
+            T::description().dds_type_name(),
+        );
+        let token = self
+            .session
+            .liveliness()
+            .declare_token(keys::liveliness_key(
+                &entity,
+                &keys::qos_string(false, spec.qos.depth()),
+            ))
+            .await
+            .map_err(zerr(format!("declare publisher token {key}")))?;
+        let mut gid = [0u8; 16];
+        rand::fill(&mut gid);
+        Ok(Publisher {
+            inner,
+            spec,
+            key,
+            gid,
+            sequence: AtomicI64::new(0),
+            _token: token,
+            _type: PhantomData,
+        })
+    }
+
+    /// Receive-guard settings for `spec` under this node's configuration.
+    pub fn guard_settings(&self, spec: &TopicSpec) -> GuardSettings {
+        let deadline_ms = self
+            .config
+            .deadlines_ms
+            .get(spec.name)
+            .copied()
+            .or(spec.deadline_ms);
+        GuardSettings {
+            enforce_order: spec.qos.enforces_order(),
+            deadline_ns: deadline_ms.map(|ms| ms.saturating_mul(1_000_000) as i64),
+            clock_tolerance_ns: self.config.clock_tolerance_ms.saturating_mul(1_000_000) as i64,
+        }
+    }
+
+    /// Declares a subscriber on `topic`. Samples are checked (attachment, order,
+    /// deadline), decoded, counted, and queued with the topic's depth (newest only for
+    /// control, state and image topics).
+    ///
+    /// # Errors
+    /// [`BusError::Zenoh`] if Zenoh refuses the declaration.
+    pub async fn subscriber<T: Message>(
+        &self,
+        topic: &Topic<T>,
+    ) -> Result<Subscriber<T>, BusError> {
+        self.subscriber_with(topic, self.guard_settings(&topic.spec))
+            .await
+    }
+
+    /// [`Bus::subscriber`] with explicit guard settings.
+    ///
+    /// # Errors
+    /// [`BusError::Zenoh`] if Zenoh refuses the declaration.
+    pub async fn subscriber_with<T: Message>(
+        &self,
+        topic: &Topic<T>,
+        settings: GuardSettings,
+    ) -> Result<Subscriber<T>, BusError> {
+        let spec = topic.spec;
+        let key = keys::data_key::<T>(self.config.domain_id, spec.name);
+        let shared = Arc::new(Shared::<T>::new(spec, settings));
+        let cb_shared = Arc::clone(&shared);
+        let inner = self
+            .session
+            .declare_subscriber(key.clone())
+            .callback(move |sample: zenoh::sample::Sample| {
+                let payload = sample.payload().to_bytes();
+                let att = sample.attachment().map(|a| a.to_bytes());
+                cb_shared.on_sample(&payload, att.as_deref(), unix_nanos_now());
+            })
+            .await
+            .map_err(zerr(format!("declare subscriber {key}")))?;
+        let entity = self.entity(
+            EntityKind::Subscriber,
+            &spec,
+            T::description().dds_type_name(),
+        );
+        let token = self
+            .session
+            .liveliness()
+            .declare_token(keys::liveliness_key(
+                &entity,
+                &keys::qos_string(false, spec.qos.depth()),
+            ))
+            .await
+            .map_err(zerr(format!("declare subscriber token {key}")))?;
+        Ok(Subscriber {
+            shared,
+            _inner: inner,
+            _token: token,
+        })
+    }
+
+    /// Every entity currently announced in this domain (nodes, publishers, subscribers,
+    /// including those of ROS 2 nodes on rmw_zenoh).
+    ///
+    /// # Errors
+    /// [`BusError::Zenoh`] if the liveliness query fails.
+    pub async fn graph(&self, timeout: Duration) -> Result<Vec<GraphEntity>, BusError> {
+        let replies = self
+            .session
+            .liveliness()
+            .get(format!(
+                "{}/{}/**",
+                keys::LIVELINESS_PREFIX,
+                self.config.domain_id
+            ))
+            .timeout(timeout)
+            .await
+            .map_err(zerr("liveliness query"))?;
+        let mut out = Vec::new();
+        while let Ok(reply) = replies.recv_async().await {
+            if let Ok(sample) = reply.result()
+                && let Some(e) = keys::parse_liveliness_key(sample.key_expr().as_str())
+            {
+                out.push(e);
+            }
+        }
+        out.sort_by(|a, b| (&a.node_name, a.entity_id).cmp(&(&b.node_name, b.entity_id)));
+        out.dedup();
+        Ok(out)
+    }
+
+    /// Watches nodes appearing and vanishing in this domain.
+    ///
+    /// # Errors
+    /// [`BusError::Zenoh`] if the liveliness subscriber cannot be declared.
+    pub async fn watch_nodes(&self) -> Result<NodeWatch, BusError> {
+        let state = Arc::new(WatchState::default());
+        let cb_state = Arc::clone(&state);
+        let inner = self
+            .session
+            .liveliness()
+            .declare_subscriber(format!(
+                "{}/{}/*/*/*/NN/**",
+                keys::LIVELINESS_PREFIX,
+                self.config.domain_id
+            ))
+            .history(true)
+            .callback(move |sample: zenoh::sample::Sample| {
+                let Some(e) = keys::parse_liveliness_key(sample.key_expr().as_str()) else {
+                    return;
+                };
+                let alive = sample.kind() == zenoh::sample::SampleKind::Put;
+                cb_state.update(&e.node_name, sample.key_expr().as_str(), alive);
+            })
+            .await
+            .map_err(zerr("declare liveliness subscriber"))?;
+        Ok(NodeWatch {
+            state,
+            _inner: inner,
+        })
+    }
+
+    /// Closes the session (liveliness tokens vanish at once for the other nodes).
+    ///
+    /// # Errors
+    /// [`BusError::Zenoh`] if closing fails.
+    pub async fn close(self) -> Result<(), BusError> {
+        let Bus {
+            session,
+            _node_token,
+            ..
+        } = self;
+        drop(_node_token);
+        session.close().await.map_err(zerr("close session"))
+    }
+}
+
+/// Typed publisher; stamps every sample with rmw_zenoh's attachment.
+pub struct Publisher<T> {
+    inner: zenoh::pubsub::Publisher<'static>,
+    spec: TopicSpec,
+    key: String,
+    gid: [u8; 16],
+    sequence: AtomicI64,
+    _token: LivelinessToken,
+    _type: PhantomData<fn(T)>,
+}
+
+impl<T> std::fmt::Debug for Publisher<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Publisher").field("key", &self.key).finish()
+    }
+}
+
+impl<T: Message> Publisher<T> {
+    pub fn key(&self) -> &str {
+        &self.key
+    }
+    pub fn spec(&self) -> &TopicSpec {
+        &self.spec
+    }
+    pub fn gid(&self) -> [u8; 16] {
+        self.gid
+    }
+
+    /// Publishes `msg` now (non-blocking: congestion drops the sample).
+    ///
+    /// # Errors
+    /// Encoding or Zenoh errors.
+    pub fn put(&self, msg: &T) -> Result<(), BusError> {
+        self.put_at(msg, unix_nanos_now())
+    }
+
+    /// Publishes `msg` with an explicit source timestamp (ns since Unix epoch).
+    ///
+    /// # Errors
+    /// Encoding or Zenoh errors.
+    pub fn put_at(&self, msg: &T, source_timestamp_ns: i64) -> Result<(), BusError> {
+        let payload = teleop_msgs::encode(msg)?;
+        let att = Attachment {
+            sequence: self.sequence.fetch_add(1, Ordering::Relaxed) + 1,
+            source_timestamp_ns,
+            gid: self.gid,
+        };
+        self.put_raw(payload, Some(att))
+    }
+
+    /// Publishes raw bytes with an optional attachment: for fault-injection tests and
+    /// bridges. Receivers still check everything.
+    ///
+    /// # Errors
+    /// Zenoh errors.
+    pub fn put_raw(&self, payload: Vec<u8>, attachment: Option<Attachment>) -> Result<(), BusError> {
+        let mut put = self.inner.put(payload);
+        if let Some(a) = attachment {
+            put = put.attachment(a.to_bytes().to_vec());
+        }
+        put.wait().map_err(zerr(format!("put on {}", self.key)))
+    }
+
+    /// Sequence number the next sample will carry.
+    pub fn next_sequence(&self) -> i64 {
+        self.sequence.load(Ordering::Relaxed) + 1
+    }
+}
+
+/// A received, accepted sample with its metadata.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Received<T> {
+    pub msg: T,
+    pub sequence: i64,
+    pub source_timestamp_ns: i64,
+    pub receive_timestamp_ns: i64,
+    pub publisher_gid: [u8; 16],
+}
+
+impl<T> Received<T> {
+    /// Receive time minus source time, ns.
+    pub fn latency_ns(&self) -> i64 {
+        self.receive_timestamp_ns - self.source_timestamp_ns
+    }
+}
+
+struct Shared<T> {
+    spec: TopicSpec,
+    queue: Mutex<VecDeque<Received<T>>>,
+    ready: Condvar,
+    notify: tokio::sync::Notify,
+    stats: TopicStats,
+    guard: Mutex<ReceiveGuard>,
+    log_limiter: Mutex<LogLimiter>,
+}
+
+/// Lets one warning per second through, and says how many were held back.
+#[derive(Debug, Default)]
+struct LogLimiter {
+    last: Option<Instant>,
+    suppressed: u64,
+}
+
+impl LogLimiter {
+    fn allow(&mut self) -> Option<u64> {
+        let now = Instant::now();
+        match self.last {
+            Some(t) if now.duration_since(t) < Duration::from_secs(1) => {
+                self.suppressed += 1;
+                None
+            }
+            _ => {
+                self.last = Some(now);
+                Some(std::mem::take(&mut self.suppressed))
+            }
+        }
+    }
+}
+
+impl<T: Message> Shared<T> {
+    fn new(spec: TopicSpec, settings: GuardSettings) -> Self {
+        Self {
+            spec,
+            queue: Mutex::new(VecDeque::with_capacity(spec.qos.depth())),
+            ready: Condvar::new(),
+            notify: tokio::sync::Notify::new(),
+            stats: TopicStats::new(),
+            guard: Mutex::new(ReceiveGuard::new(settings)),
+            log_limiter: Mutex::new(LogLimiter::default()),
+        }
+    }
+
+    fn warn(&self, what: std::fmt::Arguments<'_>) {
+        let allowed = self.log_limiter.lock().ok().and_then(|mut l| l.allow());
+        if let Some(suppressed) = allowed {
+            tracing::warn!(topic = self.spec.name, suppressed, "{what}");
+        }
+    }
+
+    fn on_sample(&self, payload: &[u8], attachment: Option<&[u8]>, now_ns: i64) {
+        self.stats.count(Event::Received);
+        let att = match attachment.map(Attachment::from_bytes) {
+            Some(Ok(a)) => a,
+            Some(Err(e)) => {
+                self.stats.count(Event::BadAttachment);
+                self.warn(format_args!("sample dropped: {e}"));
+                return;
+            }
+            None => {
+                self.stats.count(Event::BadAttachment);
+                self.warn(format_args!(
+                    "sample dropped: no attachment (expected {ATTACHMENT_LEN} bytes)"
+                ));
+                return;
+            }
+        };
+        let verdict = match self.guard.lock() {
+            Ok(mut g) => g.check(&att, now_ns),
+            Err(_) => return,
+        };
+        match verdict {
+            Verdict::Accept => {}
+            Verdict::OutOfOrder { sequence, last } => {
+                self.stats.count(Event::OutOfOrder);
+                tracing::debug!(topic = self.spec.name, sequence, last, "out-of-order sample dropped");
+                return;
+            }
+            Verdict::Stale { age_ns } => {
+                self.stats.count(Event::Stale);
+                self.warn(format_args!(
+                    "stale sample dropped: {:.1} ms old",
+                    age_ns as f64 / 1e6
+                ));
+                return;
+            }
+            Verdict::FromFuture { ahead_ns } => {
+                self.stats.count(Event::FromFuture);
+                self.warn(format_args!(
+                    "sample dropped: source timestamp {:.1} ms in the future (clock offset?)",
+                    ahead_ns as f64 / 1e6
+                ));
+                return;
+            }
+        }
+        let msg = match teleop_msgs::decode::<T>(payload) {
+            Ok(m) => m,
+            Err(e) => {
+                self.stats.count(Event::DecodeError);
+                self.warn(format_args!("undecodable sample dropped: {e}"));
+                return;
+            }
+        };
+        self.stats.count(Event::Accepted);
+        self.stats.record_latency_ns(now_ns - att.source_timestamp_ns);
+        let received = Received {
+            msg,
+            sequence: att.sequence,
+            source_timestamp_ns: att.source_timestamp_ns,
+            receive_timestamp_ns: now_ns,
+            publisher_gid: att.gid,
+        };
+        if let Ok(mut q) = self.queue.lock() {
+            while q.len() >= self.spec.qos.depth().max(1) {
+                q.pop_front();
+                self.stats.count(Event::Overwritten);
+            }
+            q.push_back(received);
+        }
+        self.ready.notify_all();
+        self.notify.notify_waiters();
+        self.notify.notify_one();
+    }
+
+    fn pop(&self) -> Option<Received<T>> {
+        self.queue.lock().ok().and_then(|mut q| q.pop_front())
+    }
+}
+
+/// Typed subscriber. Holds the newest accepted sample(s) until taken.
+pub struct Subscriber<T> {
+    shared: Arc<Shared<T>>,
+    _inner: zenoh::pubsub::Subscriber<()>,
+    _token: LivelinessToken,
+}
+
+impl<T> std::fmt::Debug for Subscriber<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Subscriber")
+            .field("topic", &self.shared.spec.name)
+            .finish()
+    }
+}
+
+impl<T: Message> Subscriber<T> {
+    pub fn spec(&self) -> &TopicSpec {
+        &self.shared.spec
+    }
+
+    /// Takes the oldest queued sample (for depth-1 topics: the newest received), if any.
+    pub fn try_recv(&self) -> Option<Received<T>> {
+        self.shared.pop()
+    }
+
+    /// Waits for the next sample.
+    pub async fn recv(&self) -> Received<T> {
+        loop {
+            let notified = self.shared.notify.notified();
+            if let Some(r) = self.shared.pop() {
+                return r;
+            }
+            notified.await;
+        }
+    }
+
+    /// Waits up to `timeout` for the next sample.
+    pub async fn recv_timeout(&self, timeout: Duration) -> Option<Received<T>> {
+        tokio::time::timeout(timeout, self.recv()).await.ok()
+    }
+
+    /// Blocks the calling thread up to `timeout` for the next sample (for control loops
+    /// on their own threads).
+    pub fn recv_blocking(&self, timeout: Duration) -> Option<Received<T>> {
+        let deadline = Instant::now() + timeout;
+        let mut q = self.shared.queue.lock().ok()?;
+        loop {
+            if let Some(r) = q.pop_front() {
+                return Some(r);
+            }
+            let left = deadline.checked_duration_since(Instant::now())?;
+            q = self.shared.ready.wait_timeout(q, left).ok()?.0;
+        }
+    }
+
+    pub fn stats(&self) -> StatsSnapshot {
+        self.shared.stats.snapshot()
+    }
+
+    /// Named counters for node status reports.
+    pub fn named_counters(&self) -> Vec<(String, u64)> {
+        let prefix = self.shared.spec.name.rsplit('/').next().unwrap_or_default();
+        self.shared.stats.named_counters(prefix)
+    }
+}
+
+#[derive(Default)]
+struct WatchState {
+    /// node name -> liveliness keys currently alive with that name.
+    alive: Mutex<std::collections::BTreeMap<String, std::collections::BTreeSet<String>>>,
+    events: Mutex<VecDeque<NodeEvent>>,
+    notify: tokio::sync::Notify,
+}
+
+impl WatchState {
+    fn update(&self, name: &str, key: &str, alive: bool) {
+        let event = {
+            let Ok(mut map) = self.alive.lock() else {
+                return;
+            };
+            if alive {
+                let keys = map.entry(name.to_owned()).or_default();
+                let first = keys.is_empty();
+                keys.insert(key.to_owned());
+                first.then(|| NodeEvent::Appeared(name.to_owned()))
+            } else {
+                let mut gone = false;
+                if let Some(keys) = map.get_mut(name) {
+                    keys.remove(key);
+                    if keys.is_empty() {
+                        map.remove(name);
+                        gone = true;
+                    }
+                }
+                gone.then(|| NodeEvent::Vanished(name.to_owned()))
+            }
+        };
+        if let Some(e) = event {
+            if let Ok(mut q) = self.events.lock() {
+                if q.len() >= 1024 {
+                    q.pop_front();
+                }
+                q.push_back(e);
+            }
+            self.notify.notify_waiters();
+            self.notify.notify_one();
+        }
+    }
+}
+
+/// A node appearing or vanishing.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum NodeEvent {
+    Appeared(String),
+    Vanished(String),
+}
+
+/// Live view of the nodes of a domain (from their liveliness tokens).
+pub struct NodeWatch {
+    state: Arc<WatchState>,
+    _inner: zenoh::pubsub::Subscriber<()>,
+}
+
+impl std::fmt::Debug for NodeWatch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("NodeWatch").field("alive", &self.alive()).finish()
+    }
+}
+
+impl NodeWatch {
+    /// Names of the nodes alive now, sorted.
+    pub fn alive(&self) -> Vec<String> {
+        self.state
+            .alive
+            .lock()
+            .map(|m| m.keys().cloned().collect())
+            .unwrap_or_default()
+    }
+
+    pub fn is_alive(&self, name: &str) -> bool {
+        self.state
+            .alive
+            .lock()
+            .map(|m| m.contains_key(name))
+            .unwrap_or(false)
+    }
+
+    /// Takes the next pending event, if any.
+    pub fn try_event(&self) -> Option<NodeEvent> {
+        self.state.events.lock().ok().and_then(|mut q| q.pop_front())
+    }
+
+    /// Waits up to `timeout` for the next event.
+    pub async fn next_event(&self, timeout: Duration) -> Option<NodeEvent> {
+        let wait = async {
+            loop {
+                let notified = self.state.notify.notified();
+                if let Some(e) = self.try_event() {
+                    return e;
+                }
+                notified.await;
+            }
+        };
+        tokio::time::timeout(timeout, wait).await.ok()
+    }
+}

@@ -1,0 +1,333 @@
+//! The one table that names every topic of the system: key, message type, direction,
+//! nominal rate and QoS. `docs/topics.md` is generated from [`markdown_table`] and a
+//! test keeps the two identical.
+
+use std::marker::PhantomData;
+
+use teleop_msgs::{
+    FingertipPressures, Image, JointState, Message, NodeStatus, OperatorInput, PoseStamped,
+};
+
+/// Which way a topic crosses (or does not cross) between the two sites.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Direction {
+    /// Operator site to robot site.
+    LocalToRemote,
+    /// Robot site to operator site.
+    RemoteToLocal,
+    /// Stays on the operator's site.
+    LocalInternal,
+    /// Stays on the robot's site.
+    RemoteInternal,
+    /// Published by every node on both sites.
+    Both,
+}
+
+impl Direction {
+    pub fn label(self) -> &'static str {
+        match self {
+            Direction::LocalToRemote => "local -> remote",
+            Direction::RemoteToLocal => "remote -> local",
+            Direction::LocalInternal => "local only",
+            Direction::RemoteInternal => "remote only",
+            Direction::Both => "both sites",
+        }
+    }
+    /// True if samples of this topic travel between the machines of the two sites.
+    pub fn crosses_sites(self) -> bool {
+        matches!(
+            self,
+            Direction::LocalToRemote | Direction::RemoteToLocal | Direction::Both
+        )
+    }
+}
+
+/// Quality-of-service class of a topic.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum QosClass {
+    /// Commands and poses: express, real-time priority, dropped on congestion; the
+    /// subscriber keeps only the newest sample and enforces sequence order and a
+    /// deadline on the source timestamp.
+    Control,
+    /// Robot state feedback: express, interactive priority, drop, newest only, sequence
+    /// order enforced.
+    State,
+    /// Camera images: data-low priority, drop, newest only.
+    Image,
+    /// Diagnostics (node status): background priority, drop, last few kept.
+    Diagnostics,
+}
+
+impl QosClass {
+    pub fn label(self) -> &'static str {
+        match self {
+            QosClass::Control => "control",
+            QosClass::State => "state",
+            QosClass::Image => "image",
+            QosClass::Diagnostics => "diagnostics",
+        }
+    }
+    /// Zenoh priority.
+    pub fn priority(self) -> zenoh::qos::Priority {
+        use zenoh::qos::Priority;
+        match self {
+            QosClass::Control => Priority::RealTime,
+            QosClass::State => Priority::InteractiveHigh,
+            QosClass::Image => Priority::DataLow,
+            QosClass::Diagnostics => Priority::Background,
+        }
+    }
+    /// Whether samples skip batching.
+    pub fn express(self) -> bool {
+        matches!(self, QosClass::Control | QosClass::State)
+    }
+    /// How many received samples a subscriber keeps before it drops the oldest.
+    pub fn depth(self) -> usize {
+        match self {
+            QosClass::Control | QosClass::State | QosClass::Image => 1,
+            QosClass::Diagnostics => 16,
+        }
+    }
+    /// Whether a subscriber drops samples that are not newer than the last accepted
+    /// one from the same publisher.
+    pub fn enforces_order(self) -> bool {
+        matches!(self, QosClass::Control | QosClass::State)
+    }
+}
+
+/// The untyped description of a topic.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TopicSpec {
+    /// ROS-style name without leading slash, e.g. `teleop/wrist_pose`.
+    pub name: &'static str,
+    /// ROS 2 type name, e.g. `geometry_msgs/msg/PoseStamped`.
+    pub type_name: &'static str,
+    /// RIHS01 hash of the type.
+    pub type_hash: &'static str,
+    pub direction: Direction,
+    /// Nominal publishing rate.
+    pub rate_hz: f64,
+    pub qos: QosClass,
+    /// Default maximum age of an accepted sample (source timestamp to receipt), in
+    /// milliseconds; `None` for no deadline. Nodes may override it in their config.
+    pub deadline_ms: Option<u64>,
+    /// What the topic carries.
+    pub doc: &'static str,
+}
+
+/// A topic bound to its message type.
+#[derive(Debug)]
+pub struct Topic<T> {
+    pub spec: TopicSpec,
+    _type: PhantomData<fn() -> T>,
+}
+
+impl<T> Clone for Topic<T> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<T> Copy for Topic<T> {}
+
+impl<T: Message> Topic<T> {
+    pub const fn new(
+        name: &'static str,
+        direction: Direction,
+        rate_hz: f64,
+        qos: QosClass,
+        deadline_ms: Option<u64>,
+        doc: &'static str,
+    ) -> Self {
+        Self {
+            spec: TopicSpec {
+                name,
+                type_name: T::TYPE_NAME,
+                type_hash: T::TYPE_HASH,
+                direction,
+                rate_hz,
+                qos,
+                deadline_ms,
+                doc,
+            },
+            _type: PhantomData,
+        }
+    }
+
+    /// The same topic under another name (e.g. a second camera), same type and QoS.
+    pub const fn renamed(self, name: &'static str) -> Self {
+        let mut spec = self.spec;
+        spec.name = name;
+        Self {
+            spec,
+            _type: PhantomData,
+        }
+    }
+}
+
+use Direction::*;
+use QosClass as Q;
+
+/// 6D pose of the operator's wrist in the tracker's (UR5 base) frame.
+pub const WRIST_POSE: Topic<PoseStamped> = Topic::new(
+    "teleop/wrist_pose",
+    LocalToRemote,
+    120.0,
+    Q::Control,
+    Some(100),
+    "Operator wrist pose (tracker frame); drives the PR2 arm through the clutch and the camera arm",
+);
+/// Shadow hand finger joint targets from hand inference.
+pub const HAND_JOINT_TARGETS: Topic<JointState> = Topic::new(
+    "teleop/hand/joint_targets",
+    LocalToRemote,
+    30.0,
+    Q::Control,
+    Some(200),
+    "17 Shadow finger joint targets (rad) inferred from the operator's hand depth image",
+);
+/// Pedals and switches.
+pub const OPERATOR_INPUT: Topic<OperatorInput> = Topic::new(
+    "teleop/operator_input",
+    LocalToRemote,
+    50.0,
+    Q::Control,
+    Some(100),
+    "Clutch pedal, enable (deadman) switch, camera-arm stop pedal, motion scale",
+);
+/// PR2 arm joint states.
+pub const PR2_JOINT_STATES: Topic<JointState> = Topic::new(
+    "teleop/pr2/joint_states",
+    RemoteToLocal,
+    100.0,
+    Q::State,
+    Some(500),
+    "PR2 right arm joint positions/velocities (5 arm joints)",
+);
+/// Shadow hand joint states.
+pub const SHADOW_JOINT_STATES: Topic<JointState> = Topic::new(
+    "teleop/shadow/joint_states",
+    RemoteToLocal,
+    100.0,
+    Q::State,
+    Some(500),
+    "Shadow hand joint positions/velocities/efforts (24 joints incl. wrist)",
+);
+/// Fingertip pressures.
+pub const FINGERTIP_PRESSURES: Topic<FingertipPressures> = Topic::new(
+    "teleop/shadow/fingertip_pressures",
+    RemoteToLocal,
+    100.0,
+    Q::State,
+    Some(500),
+    "Five BioTac-like fingertip contact forces (N)",
+);
+/// Remote camera, top view.
+pub const REMOTE_CAMERA_TOP: Topic<Image> = Topic::new(
+    "teleop/remote_camera/top/image",
+    RemoteToLocal,
+    15.0,
+    Q::Image,
+    None,
+    "Top view of the robot's workspace (rgb8), rate-limited",
+);
+/// Remote camera, side view.
+pub const REMOTE_CAMERA_SIDE: Topic<Image> = REMOTE_CAMERA_TOP.renamed("teleop/remote_camera/side/image");
+/// Depth image of the operator's hand from the camera on the UR5.
+pub const HAND_DEPTH: Topic<Image> = Topic::new(
+    "teleop/local_camera/depth",
+    LocalInternal,
+    30.0,
+    Q::Image,
+    None,
+    "Depth image (16UC1, mm) of the operator's hand from the camera on the UR5",
+);
+/// UR5 joint states.
+pub const UR5_JOINT_STATES: Topic<JointState> = Topic::new(
+    "teleop/ur5/joint_states",
+    LocalInternal,
+    100.0,
+    Q::State,
+    Some(500),
+    "UR5 camera-arm joint states",
+);
+/// Status of every node.
+pub const NODE_STATUS: Topic<NodeStatus> = Topic::new(
+    "teleop/status",
+    Both,
+    1.0,
+    Q::Diagnostics,
+    None,
+    "Lifecycle state, rejected-input counters and last error of each node",
+);
+
+/// Every topic of the system.
+pub const ALL: &[TopicSpec] = &[
+    WRIST_POSE.spec,
+    HAND_JOINT_TARGETS.spec,
+    OPERATOR_INPUT.spec,
+    PR2_JOINT_STATES.spec,
+    SHADOW_JOINT_STATES.spec,
+    FINGERTIP_PRESSURES.spec,
+    REMOTE_CAMERA_TOP.spec,
+    REMOTE_CAMERA_SIDE.spec,
+    HAND_DEPTH.spec,
+    UR5_JOINT_STATES.spec,
+    NODE_STATUS.spec,
+];
+
+/// Looks a topic up by name (leading/trailing slashes ignored).
+pub fn find(name: &str) -> Option<&'static TopicSpec> {
+    let name = crate::keys::normalize_topic(name);
+    ALL.iter().find(|t| t.name == name)
+}
+
+/// The Markdown table of [`ALL`], as it appears in `docs/topics.md`.
+pub fn markdown_table() -> String {
+    let mut out = String::from(
+        "| topic | type | direction | rate | QoS | deadline | carries |\n|---|---|---|---|---|---|---|\n",
+    );
+    for t in ALL {
+        let deadline = t
+            .deadline_ms
+            .map_or_else(|| "-".to_owned(), |d| format!("{d} ms"));
+        out.push_str(&format!(
+            "| `/{}` | `{}` | {} | {} Hz | {} | {} | {} |\n",
+            t.name,
+            t.type_name,
+            t.direction.label(),
+            t.rate_hz,
+            t.qos.label(),
+            deadline,
+            t.doc
+        ));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_are_unique_and_well_formed() {
+        for (i, a) in ALL.iter().enumerate() {
+            assert!(!a.name.starts_with('/') && !a.name.ends_with('/'), "{}", a.name);
+            assert!(a.rate_hz > 0.0, "{}", a.name);
+            for b in &ALL[i + 1..] {
+                assert_ne!(a.name, b.name);
+            }
+            if a.qos == QosClass::Control {
+                assert!(a.deadline_ms.is_some(), "control topic {} needs a deadline", a.name);
+            }
+        }
+        assert_eq!(find("/teleop/wrist_pose/"), Some(&WRIST_POSE.spec));
+        assert_eq!(find("nope"), None);
+    }
+
+    #[test]
+    fn every_control_topic_crosses_local_to_remote() {
+        for t in ALL.iter().filter(|t| t.qos == QosClass::Control) {
+            assert_eq!(t.direction, Direction::LocalToRemote, "{}", t.name);
+        }
+    }
+}

@@ -1,0 +1,266 @@
+//! Two Zenoh sessions in one process, connected over TCP loopback without scouting.
+#![allow(clippy::unwrap_used)]
+
+use std::time::Duration;
+
+use teleop_bus::attachment::Attachment;
+use teleop_bus::topics::{self, WRIST_POSE};
+use teleop_bus::{Bus, BusConfig, NodeEvent, ZenohSettings};
+use teleop_msgs::{Header, JointState, PoseStamped, Time, unix_nanos_now};
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// A listening and a connecting node configuration in a private domain.
+fn pair_config(domain_id: u32) -> (BusConfig, BusConfig) {
+    let port = free_port();
+    let a = BusConfig {
+        domain_id,
+        zenoh: ZenohSettings {
+            listen: vec![format!("tcp/127.0.0.1:{port}")],
+            multicast_scouting: false,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let b = BusConfig {
+        domain_id,
+        zenoh: ZenohSettings {
+            listen: vec![],
+            connect: vec![format!("tcp/127.0.0.1:{port}")],
+            multicast_scouting: false,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    (a, b)
+}
+
+async fn pair(domain_id: u32) -> (Bus, Bus) {
+    let (a, b) = pair_config(domain_id);
+    let a = Bus::open("node_a", &a).await.unwrap();
+    let b = Bus::open("node_b", &b).await.unwrap();
+    (a, b)
+}
+
+fn joint_state(i: usize) -> JointState {
+    JointState {
+        header: Header::new(Time::from_nanos(i as i64), "hand"),
+        name: vec!["FFJ3".into(), "FFJ2".into()],
+        position: vec![i as f64, 0.5],
+        velocity: vec![],
+        effort: vec![],
+    }
+}
+
+/// Publishes until the subscriber sees something (discovery takes a moment).
+async fn wait_connected(
+    publisher: &teleop_bus::Publisher<JointState>,
+    sub: &teleop_bus::Subscriber<JointState>,
+) {
+    for _ in 0..200 {
+        publisher.put(&joint_state(0)).unwrap();
+        if sub.recv_timeout(Duration::from_millis(25)).await.is_some() {
+            // Drain whatever else arrived.
+            while sub.try_recv().is_some() {}
+            return;
+        }
+    }
+    panic!("publisher and subscriber never connected");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn typed_round_trip_with_metadata() {
+    let (a, b) = pair(11).await;
+    let publisher = a.publisher(&topics::SHADOW_JOINT_STATES).await.unwrap();
+    let sub = b.subscriber(&topics::SHADOW_JOINT_STATES).await.unwrap();
+    wait_connected(&publisher, &sub).await;
+
+    let seq = publisher.next_sequence();
+    let sent = joint_state(42);
+    publisher.put(&sent).unwrap();
+    let got = sub.recv_timeout(Duration::from_secs(2)).await.unwrap();
+    assert_eq!(got.msg, sent);
+    assert_eq!(got.sequence, seq);
+    assert_eq!(got.publisher_gid, publisher.gid());
+    assert!(got.latency_ns() >= 0 && got.latency_ns() < 1_000_000_000);
+    let stats = sub.stats();
+    assert!(stats.accepted >= 2);
+    assert_eq!(stats.rejected(), 0);
+    assert!(stats.latency_p50_us > 0);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn control_topics_keep_only_the_newest() {
+    let (a, b) = pair(12).await;
+    let publisher = a.publisher(&topics::SHADOW_JOINT_STATES).await.unwrap();
+    let sub = b.subscriber(&topics::SHADOW_JOINT_STATES).await.unwrap();
+    wait_connected(&publisher, &sub).await;
+    for i in 1..=20 {
+        publisher.put(&joint_state(i)).unwrap();
+    }
+    // Wait until the last one is in, then there must be exactly one sample queued.
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let got = sub.try_recv().unwrap();
+    assert_eq!(got.msg.position[0], 20.0);
+    assert!(sub.try_recv().is_none());
+    assert!(sub.stats().overwritten >= 1);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn stale_out_of_order_and_malformed_samples_are_dropped_and_counted() {
+    let (a, b) = pair(13).await;
+    let publisher = a.publisher(&WRIST_POSE).await.unwrap();
+    let sub = b.subscriber(&WRIST_POSE).await.unwrap();
+    // Connect.
+    let mut connected = false;
+    for _ in 0..200 {
+        publisher.put(&PoseStamped::default()).unwrap();
+        if sub.recv_timeout(Duration::from_millis(25)).await.is_some() {
+            connected = true;
+            break;
+        }
+    }
+    assert!(connected);
+    while sub.try_recv().is_some() {}
+    let base = sub.stats();
+
+    // Stale: source timestamp 1 s ago, deadline is 100 ms (+20 ms tolerance).
+    publisher
+        .put_at(&PoseStamped::default(), unix_nanos_now() - 1_000_000_000)
+        .unwrap();
+    // Out of order: a sequence number below the last accepted one.
+    let payload = teleop_msgs::encode(&PoseStamped::default()).unwrap();
+    publisher
+        .put_raw(
+            payload.clone(),
+            Some(Attachment {
+                sequence: 0,
+                source_timestamp_ns: unix_nanos_now(),
+                gid: publisher.gid(),
+            }),
+        )
+        .unwrap();
+    // Malformed payload with a valid attachment, and a valid payload without attachment.
+    let good_att = |seq| Attachment {
+        sequence: seq,
+        source_timestamp_ns: unix_nanos_now(),
+        gid: [9; 16],
+    };
+    publisher
+        .put_raw(vec![0, 1, 0, 0, 0xFF, 0xFF, 0xFF, 0xFF], Some(good_att(1)))
+        .unwrap();
+    publisher.put_raw(payload.clone(), None).unwrap();
+    // A sample from 1 h in the future.
+    publisher
+        .put_at(&PoseStamped::default(), unix_nanos_now() + 3_600_000_000_000)
+        .unwrap();
+
+    tokio::time::sleep(Duration::from_millis(400)).await;
+    assert!(sub.try_recv().is_none(), "nothing bad may reach the application");
+    let s = sub.stats();
+    assert_eq!(s.dropped_stale - base.dropped_stale, 1, "{s:?}");
+    assert_eq!(s.dropped_out_of_order - base.dropped_out_of_order, 1, "{s:?}");
+    assert_eq!(s.decode_errors - base.decode_errors, 1, "{s:?}");
+    assert_eq!(s.bad_attachment - base.bad_attachment, 1, "{s:?}");
+    assert_eq!(s.dropped_from_future - base.dropped_from_future, 1, "{s:?}");
+    assert_eq!(s.accepted, base.accepted);
+
+    // A good sample still goes through afterwards.
+    let mut pose = PoseStamped::default();
+    pose.pose.position.x = 0.25;
+    publisher.put(&pose).unwrap();
+    let got = sub.recv_timeout(Duration::from_secs(2)).await.unwrap();
+    assert_eq!(got.msg.pose.position.x, 0.25);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn liveliness_reports_nodes_appearing_and_vanishing() {
+    let (ca, cb) = pair_config(14);
+    let a = Bus::open("watcher", &ca).await.unwrap();
+    let watch = a.watch_nodes().await.unwrap();
+    assert_eq!(
+        watch.next_event(Duration::from_secs(2)).await,
+        Some(NodeEvent::Appeared("watcher".into()))
+    );
+    let b = Bus::open("operator_site", &cb).await.unwrap();
+    let mut saw = false;
+    for _ in 0..5 {
+        if watch.next_event(Duration::from_secs(2)).await
+            == Some(NodeEvent::Appeared("operator_site".into()))
+        {
+            saw = true;
+            break;
+        }
+    }
+    assert!(saw, "never saw operator_site appear");
+    assert!(watch.is_alive("operator_site"));
+
+    let publisher = b.publisher(&WRIST_POSE).await.unwrap();
+    let mut entry = None;
+    for _ in 0..20 {
+        let graph = a.graph(Duration::from_millis(500)).await.unwrap();
+        entry = graph
+            .into_iter()
+            .find(|e| e.node_name == "operator_site" && e.topic.is_some());
+        if entry.is_some() {
+            break;
+        }
+    }
+    let entry = entry.expect("publisher announced in the graph");
+    assert_eq!(entry.topic.as_deref(), Some("/teleop/wrist_pose"));
+    assert_eq!(entry.ros_type_name().as_deref(), Some("geometry_msgs/msg/PoseStamped"));
+    drop(publisher);
+
+    b.close().await.unwrap();
+    let mut gone = false;
+    for _ in 0..5 {
+        if watch.next_event(Duration::from_secs(2)).await
+            == Some(NodeEvent::Vanished("operator_site".into()))
+        {
+            gone = true;
+            break;
+        }
+    }
+    assert!(gone, "never saw operator_site vanish");
+    assert!(!watch.is_alive("operator_site"));
+    assert_eq!(watch.alive(), vec!["watcher".to_owned()]);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn samples_on_the_wire_match_rmw_zenoh() {
+    let (a, b) = pair(15).await;
+    let publisher = a.publisher(&topics::SHADOW_JOINT_STATES).await.unwrap();
+    let expected_key = "15/teleop/shadow/joint_states/sensor_msgs::msg::dds_::JointState_/\
+                        RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e";
+    assert_eq!(publisher.key(), expected_key);
+    let raw = b.session().declare_subscriber(expected_key).await.unwrap();
+    let mut got = None;
+    for _ in 0..200 {
+        publisher.put(&joint_state(3)).unwrap();
+        if let Ok(Some(s)) = raw.recv_timeout(Duration::from_millis(25)) {
+            got = Some(s);
+            break;
+        }
+    }
+    let sample = got.unwrap();
+    let payload = sample.payload().to_bytes();
+    assert_eq!(&payload[..4], &[0, 1, 0, 0], "CDR LE encapsulation header");
+    let att = sample.attachment().unwrap().to_bytes();
+    assert_eq!(att.len(), 33);
+    let att = Attachment::from_bytes(&att).unwrap();
+    assert_eq!(att.gid, publisher.gid());
+    let msg: JointState = teleop_msgs::decode(&payload).unwrap();
+    assert_eq!(msg.name, vec!["FFJ3", "FFJ2"]);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn invalid_node_names_are_refused() {
+    let err = Bus::open("bad name/x", &BusConfig::default()).await.unwrap_err();
+    assert!(err.to_string().contains("bad name/x"));
+}

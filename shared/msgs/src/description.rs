@@ -1,0 +1,385 @@
+//! Type descriptions in the shape of ROS 2's `type_description_interfaces`, used for two
+//! things:
+//!
+//! * the RIHS01 type hash (REP 2011) that rmw_zenoh puts in every data key, and
+//! * a schema-guided pre-check of CDR bytes that runs before the `cdr` crate decodes
+//!   them, so a hostile length field can neither make the decoder allocate gigabytes nor
+//!   read past the end of the payload.
+//!
+//! The hash is SHA-256 over a JSON rendering of the type and of every type it refers to
+//! (sorted by name), with default values left out and `", "` / `": "` as separators, as
+//! `rosidl_generator_type_description` computes it.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+
+use sha2::{Digest, Sha256};
+
+/// Primitive or nested element type of a field (`type_description_interfaces/FieldType`).
+#[derive(Debug, Clone, Copy)]
+pub enum BaseType {
+    /// A nested message type, given by its description.
+    Nested(fn() -> &'static MsgDescription),
+    Int8,
+    Uint8,
+    Int16,
+    Uint16,
+    Int32,
+    Uint32,
+    Int64,
+    Uint64,
+    Float32,
+    Float64,
+    Bool,
+    /// Unbounded `string`.
+    String,
+}
+
+impl BaseType {
+    /// The REP 2011 type id of a single element of this type.
+    pub fn type_id(self) -> u8 {
+        match self {
+            BaseType::Nested(_) => 1,
+            BaseType::Int8 => 2,
+            BaseType::Uint8 => 3,
+            BaseType::Int16 => 4,
+            BaseType::Uint16 => 5,
+            BaseType::Int32 => 6,
+            BaseType::Uint32 => 7,
+            BaseType::Int64 => 8,
+            BaseType::Uint64 => 9,
+            BaseType::Float32 => 10,
+            BaseType::Float64 => 11,
+            BaseType::Bool => 15,
+            BaseType::String => 17,
+        }
+    }
+
+    /// Size in bytes of a primitive on the wire (also its CDR alignment); `None` for
+    /// strings and nested types.
+    fn primitive_size(self) -> Option<usize> {
+        match self {
+            BaseType::Int8 | BaseType::Uint8 | BaseType::Bool => Some(1),
+            BaseType::Int16 | BaseType::Uint16 => Some(2),
+            BaseType::Int32 | BaseType::Uint32 | BaseType::Float32 => Some(4),
+            BaseType::Int64 | BaseType::Uint64 | BaseType::Float64 => Some(8),
+            BaseType::String | BaseType::Nested(_) => None,
+        }
+    }
+}
+
+/// How many elements a field holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Arity {
+    /// One element.
+    Single,
+    /// A fixed-size array `T[N]`.
+    Array(u32),
+    /// An unbounded sequence `T[]`.
+    Sequence,
+}
+
+/// One field of a message.
+#[derive(Debug, Clone, Copy)]
+pub struct Field {
+    pub name: &'static str,
+    pub base: BaseType,
+    pub arity: Arity,
+}
+
+impl Field {
+    pub const fn new(name: &'static str, base: BaseType) -> Self {
+        Self {
+            name,
+            base,
+            arity: Arity::Single,
+        }
+    }
+    pub const fn seq(name: &'static str, base: BaseType) -> Self {
+        Self {
+            name,
+            base,
+            arity: Arity::Sequence,
+        }
+    }
+    pub const fn array(name: &'static str, base: BaseType, len: u32) -> Self {
+        Self {
+            name,
+            base,
+            arity: Arity::Array(len),
+        }
+    }
+
+    fn type_id(&self) -> u32 {
+        let base = u32::from(self.base.type_id());
+        match self.arity {
+            Arity::Single => base,
+            Arity::Array(_) => base + 48,
+            Arity::Sequence => base + 144,
+        }
+    }
+
+    fn capacity(&self) -> u32 {
+        match self.arity {
+            Arity::Array(n) => n,
+            _ => 0,
+        }
+    }
+}
+
+/// Description of a message type: its full ROS 2 name and its fields, in order.
+#[derive(Debug)]
+pub struct MsgDescription {
+    /// e.g. `sensor_msgs/msg/JointState`.
+    pub type_name: &'static str,
+    pub fields: &'static [Field],
+}
+
+impl MsgDescription {
+    /// All message types this one refers to, directly or not, sorted by name.
+    pub fn referenced(&'static self) -> Vec<&'static MsgDescription> {
+        let mut found: BTreeMap<&'static str, &'static MsgDescription> = BTreeMap::new();
+        let mut stack: Vec<&'static MsgDescription> = vec![self];
+        while let Some(d) = stack.pop() {
+            for f in d.fields {
+                if let BaseType::Nested(get) = f.base {
+                    let nested = get();
+                    if found.insert(nested.type_name, nested).is_none() {
+                        stack.push(nested);
+                    }
+                }
+            }
+        }
+        found.into_values().collect()
+    }
+
+    /// The JSON text that REP 2011 hashes (no default values, `", "`/`": "` separators).
+    pub fn hashable_json(&'static self) -> String {
+        let mut out = String::from("{\"type_description\": ");
+        write_type(&mut out, self);
+        out.push_str(", \"referenced_type_descriptions\": [");
+        for (i, r) in self.referenced().into_iter().enumerate() {
+            if i > 0 {
+                out.push_str(", ");
+            }
+            write_type(&mut out, r);
+        }
+        out.push_str("]}");
+        out
+    }
+
+    /// `RIHS01_<sha256 hex>`: the type hash rmw_zenoh puts in data keys.
+    pub fn type_hash(&'static self) -> String {
+        let digest = Sha256::digest(self.hashable_json().as_bytes());
+        format!("RIHS01_{}", hex::encode(digest))
+    }
+
+    /// The DDS-mangled name rmw_zenoh uses in keys, e.g.
+    /// `sensor_msgs::msg::dds_::JointState_`.
+    pub fn dds_type_name(&self) -> String {
+        let mut parts = self.type_name.split('/');
+        let pkg = parts.next().unwrap_or_default();
+        let _msg = parts.next();
+        let name = parts.next().unwrap_or_default();
+        format!("{pkg}::msg::dds_::{name}_")
+    }
+
+    /// The `.msg` text of this type (fields only; comments and constants live in the
+    /// `.msg` files under `shared/msgs/msg`).
+    pub fn msg_text(&self) -> String {
+        let mut out = String::new();
+        for f in self.fields {
+            let base = match f.base {
+                BaseType::Nested(get) => {
+                    let n = get().type_name;
+                    n.replace("/msg/", "/")
+                }
+                BaseType::Int8 => "int8".into(),
+                BaseType::Uint8 => "uint8".into(),
+                BaseType::Int16 => "int16".into(),
+                BaseType::Uint16 => "uint16".into(),
+                BaseType::Int32 => "int32".into(),
+                BaseType::Uint32 => "uint32".into(),
+                BaseType::Int64 => "int64".into(),
+                BaseType::Uint64 => "uint64".into(),
+                BaseType::Float32 => "float32".into(),
+                BaseType::Float64 => "float64".into(),
+                BaseType::Bool => "bool".into(),
+                BaseType::String => "string".into(),
+            };
+            let suffix = match f.arity {
+                Arity::Single => String::new(),
+                Arity::Array(n) => format!("[{n}]"),
+                Arity::Sequence => "[]".into(),
+            };
+            let _ = writeln!(out, "{base}{suffix} {}", f.name);
+        }
+        out
+    }
+}
+
+fn write_type(out: &mut String, d: &'static MsgDescription) {
+    let _ = write!(
+        out,
+        "{{\"type_name\": \"{}\", \"fields\": [",
+        d.type_name
+    );
+    for (i, f) in d.fields.iter().enumerate() {
+        if i > 0 {
+            out.push_str(", ");
+        }
+        let nested = match f.base {
+            BaseType::Nested(get) => get().type_name,
+            _ => "",
+        };
+        let _ = write!(
+            out,
+            "{{\"name\": \"{}\", \"type\": {{\"type_id\": {}, \"capacity\": {}, \"string_capacity\": 0, \"nested_type_name\": \"{}\"}}}}",
+            f.name,
+            f.type_id(),
+            f.capacity(),
+            nested
+        );
+    }
+    out.push_str("]}");
+}
+
+/// Why a CDR payload was refused before decoding.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum WireError {
+    #[error("payload of {len} bytes is shorter than the 4-byte CDR encapsulation header")]
+    NoHeader { len: usize },
+    #[error("unsupported CDR encapsulation {0:#06x} (expected CDR_BE 0x0000 or CDR_LE 0x0001)")]
+    Encapsulation(u16),
+    #[error("field `{field}` needs {needed} bytes at offset {offset}, only {available} left")]
+    Truncated {
+        field: String,
+        offset: usize,
+        needed: u64,
+        available: usize,
+    },
+    #[error("field `{field}`: boolean byte {value} is neither 0 nor 1")]
+    BadBool { field: String, value: u8 },
+}
+
+/// Walks `bytes` (header included) with `desc` as the schema and checks that every
+/// length field fits in what is left, before any decoder allocates for it.
+///
+/// # Errors
+/// [`WireError`] naming the first field that does not fit.
+pub fn check_wire(desc: &'static MsgDescription, bytes: &[u8]) -> Result<(), WireError> {
+    if bytes.len() < 4 {
+        return Err(WireError::NoHeader { len: bytes.len() });
+    }
+    let little = match (bytes[0], bytes[1]) {
+        (0, 0) => false,
+        (0, 1) => true,
+        (a, b) => return Err(WireError::Encapsulation(u16::from_be_bytes([a, b]))),
+    };
+    let mut w = Walker {
+        data: &bytes[4..],
+        pos: 0,
+        little,
+    };
+    w.message(desc, desc.type_name)
+}
+
+struct Walker<'a> {
+    data: &'a [u8],
+    pos: usize,
+    little: bool,
+}
+
+impl Walker<'_> {
+    fn take(&mut self, field: &str, align: usize, n: u64) -> Result<usize, WireError> {
+        let pad = (align - self.pos % align) % align;
+        let available = self.data.len().saturating_sub(self.pos);
+        let needed = n + pad as u64;
+        if needed > available as u64 {
+            return Err(WireError::Truncated {
+                field: field.to_owned(),
+                offset: self.pos + 4,
+                needed,
+                available,
+            });
+        }
+        let start = self.pos + pad;
+        // `needed <= available <= usize::MAX`, so the cast is exact.
+        self.pos += needed as usize;
+        Ok(start)
+    }
+
+    fn u32(&mut self, field: &str) -> Result<u32, WireError> {
+        let at = self.take(field, 4, 4)?;
+        let raw = [
+            self.data[at],
+            self.data[at + 1],
+            self.data[at + 2],
+            self.data[at + 3],
+        ];
+        Ok(if self.little {
+            u32::from_le_bytes(raw)
+        } else {
+            u32::from_be_bytes(raw)
+        })
+    }
+
+    fn message(&mut self, desc: &'static MsgDescription, path: &str) -> Result<(), WireError> {
+        for f in desc.fields {
+            let name = format!("{path}.{}", f.name);
+            match f.arity {
+                Arity::Single => self.element(f.base, &name)?,
+                Arity::Array(n) => self.elements(f.base, &name, n)?,
+                Arity::Sequence => {
+                    let n = self.u32(&name)?;
+                    self.elements(f.base, &name, n)?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn elements(&mut self, base: BaseType, name: &str, n: u32) -> Result<(), WireError> {
+        match base.primitive_size() {
+            Some(size) if !matches!(base, BaseType::Bool) => {
+                if n > 0 {
+                    self.take(name, size, u64::from(n) * size as u64)?;
+                }
+                Ok(())
+            }
+            _ => {
+                // Strings, booleans and nested messages each take at least one byte, so
+                // this loop ends within `data.len()` iterations whatever `n` claims.
+                for _ in 0..n {
+                    self.element(base, name)?;
+                }
+                Ok(())
+            }
+        }
+    }
+
+    fn element(&mut self, base: BaseType, name: &str) -> Result<(), WireError> {
+        match base {
+            BaseType::Nested(get) => self.message(get(), name),
+            BaseType::String => {
+                let len = self.u32(name)?;
+                self.take(name, 1, u64::from(len)).map(|_| ())
+            }
+            BaseType::Bool => {
+                let at = self.take(name, 1, 1)?;
+                match self.data[at] {
+                    0 | 1 => Ok(()),
+                    value => Err(WireError::BadBool {
+                        field: name.to_owned(),
+                        value,
+                    }),
+                }
+            }
+            other => {
+                let size = other.primitive_size().unwrap_or(1);
+                self.take(name, size, size as u64).map(|_| ())
+            }
+        }
+    }
+}
