@@ -14,12 +14,14 @@ pub mod attachment;
 pub mod config;
 pub mod guard;
 pub mod keys;
+pub mod node;
 mod session;
 pub mod stats;
 pub mod topics;
 
 pub use attachment::Attachment;
 pub use config::{BusConfig, ZenohArgs, ZenohSettings};
+pub use node::{NodeArgs, NodeConfig, StatusReporter};
 pub use session::{Bus, BusError, NodeEvent, NodeWatch, Publisher, Received, Subscriber};
 pub use stats::StatsSnapshot;
 pub use topics::{Direction, QosClass, Topic, TopicSpec};

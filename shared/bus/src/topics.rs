@@ -153,6 +153,14 @@ impl<T: Message> Topic<T> {
         }
     }
 
+    /// The typed topic for `spec`, if `spec` carries `T`.
+    pub fn from_spec(spec: &TopicSpec) -> Option<Self> {
+        (spec.type_name == T::TYPE_NAME && spec.type_hash == T::TYPE_HASH).then_some(Self {
+            spec: *spec,
+            _type: PhantomData,
+        })
+    }
+
     /// The same topic under another name (e.g. a second camera), same type and QoS.
     pub const fn renamed(self, name: &'static str) -> Self {
         let mut spec = self.spec;

@@ -1,0 +1,35 @@
+//! Operator-site wrist tracker node (simulated operator today).
+use std::time::Duration;
+
+use anyhow::Context;
+use clap::Parser;
+use teleop_bus::NodeArgs;
+use teleop_local_site::wrist_tracker::{self, WristTrackerConfig};
+
+/// Publishes the operator's wrist pose and pedal state.
+#[derive(Debug, Parser)]
+#[command(version, about)]
+struct Cli {
+    #[command(flatten)]
+    node: NodeArgs,
+    /// Stop after this many seconds (default: run until Ctrl-C).
+    #[arg(long)]
+    duration_s: Option<f64>,
+}
+
+#[tokio::main]
+async fn main() -> anyhow::Result<()> {
+    teleop_bus::init_tracing();
+    let cli = Cli::parse();
+    let Some(cfg) = cli.node.load::<WristTrackerConfig>().context("loading configuration")? else {
+        return Ok(());
+    };
+    let duration = match cli.duration_s {
+        Some(s) if s.is_finite() && s > 0.0 => Some(Duration::from_secs_f64(s)),
+        Some(s) => anyhow::bail!("--duration-s must be a positive number of seconds, got {s}"),
+        None => None,
+    };
+    let counters = wrist_tracker::run(cfg, duration).await?;
+    tracing::info!(?counters, "wrist tracker stopped");
+    Ok(())
+}

@@ -1,0 +1,99 @@
+//! What every node binary shares: the command line (`--config`, Zenoh overrides,
+//! `--show-default-config`), config loading, and periodic status reports.
+
+use std::path::PathBuf;
+
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+use teleop_msgs::{Header, Lifecycle, NodeStatus, Time};
+
+use crate::config::{self, BusConfig, ConfigError, ZenohArgs};
+use crate::session::{Bus, BusError, Publisher};
+use crate::topics;
+
+/// A node's configuration: serde with `deny_unknown_fields`, defaults for everything.
+pub trait NodeConfig: Serialize + DeserializeOwned + Default {
+    /// The bus section, so command-line overrides can be applied.
+    fn bus_mut(&mut self) -> &mut BusConfig;
+    /// Checks values serde cannot (ranges, consistency).
+    ///
+    /// # Errors
+    /// A text naming the offending field.
+    fn validate(&self) -> Result<(), String> {
+        Ok(())
+    }
+}
+
+/// Command-line options of every node binary (flatten into its clap parser).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct NodeArgs {
+    /// TOML configuration file (unknown fields are rejected).
+    #[arg(long, short = 'c')]
+    pub config: Option<PathBuf>,
+    /// Print the default configuration as TOML and exit.
+    #[arg(long)]
+    pub show_default_config: bool,
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+}
+
+impl NodeArgs {
+    /// Loads the configuration (defaults when no file is given), applies the
+    /// command-line overrides and validates. Returns `None` after printing the default
+    /// configuration for `--show-default-config`.
+    ///
+    /// # Errors
+    /// [`ConfigError`] naming the file, field or value at fault.
+    pub fn load<C: NodeConfig>(&self) -> Result<Option<C>, ConfigError> {
+        if self.show_default_config {
+            print!("{}", config::to_toml(&C::default())?);
+            return Ok(None);
+        }
+        let mut cfg: C = match &self.config {
+            Some(path) => config::load_toml(path)?,
+            None => C::default(),
+        };
+        self.zenoh.apply(cfg.bus_mut());
+        cfg.validate().map_err(ConfigError::Invalid)?;
+        Ok(Some(cfg))
+    }
+}
+
+/// Publishes this node's [`NodeStatus`] on [`topics::NODE_STATUS`].
+#[derive(Debug)]
+pub struct StatusReporter {
+    publisher: Publisher<NodeStatus>,
+    node_name: String,
+}
+
+impl StatusReporter {
+    /// # Errors
+    /// [`BusError`] if the publisher cannot be declared.
+    pub async fn new(bus: &Bus) -> Result<Self, BusError> {
+        Ok(Self {
+            publisher: bus.publisher(&topics::NODE_STATUS).await?,
+            node_name: bus.node_name().to_owned(),
+        })
+    }
+
+    /// Publishes one status report.
+    ///
+    /// # Errors
+    /// [`BusError`] if publishing fails.
+    pub fn report(
+        &self,
+        state: Lifecycle,
+        counters: &[(String, u64)],
+        last_error: &str,
+    ) -> Result<(), BusError> {
+        let msg = NodeStatus {
+            header: Header::new(Time::now(), ""),
+            node_name: self.node_name.clone(),
+            lifecycle_state: state as u8,
+            counter_names: counters.iter().map(|(n, _)| n.clone()).collect(),
+            counter_values: counters.iter().map(|(_, v)| *v).collect(),
+            last_error: last_error.to_owned(),
+        };
+        self.publisher.put(&msg)
+    }
+}

@@ -1,0 +1,303 @@
+//! `teleop topic ...`, `teleop node ...`, `teleop monitor`.
+
+use std::collections::BTreeMap;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use teleop_bus::guard::GuardSettings;
+use teleop_bus::keys::{EntityKind, GraphEntity};
+use teleop_bus::topics::{self, TopicSpec};
+use teleop_bus::{Bus, BusConfig, StatsSnapshot, Subscriber, Topic};
+use teleop_msgs::{
+    FingertipPressures, Image, JointState, Message, NodeStatus, OperatorInput, PoseStamped,
+};
+
+/// Output format of `topic echo`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Format {
+    Yaml,
+    Json,
+}
+
+async fn open(cfg: &BusConfig) -> anyhow::Result<Bus> {
+    let name = format!("teleop_cli_{}", std::process::id());
+    Bus::open(&name, cfg).await.context("opening the Zenoh session")
+}
+
+fn spec_or_bail(name: &str) -> anyhow::Result<&'static TopicSpec> {
+    topics::find(name).with_context(|| {
+        let known: Vec<String> = topics::ALL.iter().map(|t| format!("/{}", t.name)).collect();
+        format!("unknown topic `{name}`; known topics: {}", known.join(", "))
+    })
+}
+
+/// Calls `$f::<T>($args)` with `T` the message type of `$spec`.
+macro_rules! dispatch {
+    ($spec:expr, $f:ident ( $($args:expr),* )) => {{
+        let spec: &TopicSpec = $spec;
+        match spec.type_name {
+            t if t == PoseStamped::TYPE_NAME => $f::<PoseStamped>($($args),*).await,
+            t if t == JointState::TYPE_NAME => $f::<JointState>($($args),*).await,
+            t if t == OperatorInput::TYPE_NAME => $f::<OperatorInput>($($args),*).await,
+            t if t == FingertipPressures::TYPE_NAME => $f::<FingertipPressures>($($args),*).await,
+            t if t == Image::TYPE_NAME => $f::<Image>($($args),*).await,
+            t if t == NodeStatus::TYPE_NAME => $f::<NodeStatus>($($args),*).await,
+            other => bail!("no decoder for type {other}"),
+        }
+    }};
+}
+
+pub fn print_table(markdown: bool) {
+    if markdown {
+        print!("{}", topics::markdown_table());
+        return;
+    }
+    println!(
+        "{:<36} {:<36} {:<16} {:>8} {:<12} {:>9}",
+        "TOPIC", "TYPE", "DIRECTION", "RATE", "QOS", "DEADLINE"
+    );
+    for t in topics::ALL {
+        let deadline = t.deadline_ms.map_or("-".into(), |d| format!("{d} ms"));
+        println!(
+            "{:<36} {:<36} {:<16} {:>5} Hz {:<12} {:>9}",
+            format!("/{}", t.name),
+            t.type_name,
+            t.direction.label(),
+            t.rate_hz,
+            t.qos.label(),
+            deadline
+        );
+    }
+}
+
+async fn graph(cfg: &BusConfig, wait_s: f64) -> anyhow::Result<(Bus, Vec<GraphEntity>)> {
+    let bus = open(cfg).await?;
+    let wait = Duration::from_secs_f64(wait_s.clamp(0.05, 60.0));
+    // Give scouting a moment to find peers before asking.
+    tokio::time::sleep(wait / 2).await;
+    let g = bus.graph(wait).await?;
+    Ok((bus, g))
+}
+
+pub async fn topic_list(cfg: &BusConfig, wait_s: f64) -> anyhow::Result<()> {
+    let (bus, g) = graph(cfg, wait_s).await?;
+    let mut by_topic: BTreeMap<String, (String, Vec<String>, Vec<String>)> = BTreeMap::new();
+    for e in g.iter().filter(|e| e.node_name != bus.node_name()) {
+        let Some(topic) = &e.topic else { continue };
+        let entry = by_topic.entry(topic.clone()).or_insert_with(|| {
+            (e.ros_type_name().unwrap_or_default(), Vec::new(), Vec::new())
+        });
+        match e.kind {
+            EntityKind::Publisher => entry.1.push(e.node_name.clone()),
+            EntityKind::Subscriber => entry.2.push(e.node_name.clone()),
+            EntityKind::Node => {}
+        }
+    }
+    if by_topic.is_empty() {
+        println!("no live topics (is anything running on domain {}?)", bus.domain_id());
+    } else {
+        println!("{:<36} {:<36} {:<28} SUBSCRIBERS", "TOPIC", "TYPE", "PUBLISHERS");
+        for (topic, (ty, pubs, subs)) in by_topic {
+            println!("{topic:<36} {ty:<36} {:<28} {}", pubs.join(","), subs.join(","));
+        }
+    }
+    bus.close().await?;
+    Ok(())
+}
+
+pub async fn node_list(cfg: &BusConfig, wait_s: f64) -> anyhow::Result<()> {
+    let (bus, g) = graph(cfg, wait_s).await?;
+    let mut nodes: BTreeMap<String, (String, Vec<String>, Vec<String>)> = BTreeMap::new();
+    for e in g.iter().filter(|e| e.node_name != bus.node_name()) {
+        let entry = nodes
+            .entry(e.fq_node_name())
+            .or_insert_with(|| (e.zid.clone(), Vec::new(), Vec::new()));
+        match (&e.kind, &e.topic) {
+            (EntityKind::Publisher, Some(t)) => entry.1.push(t.clone()),
+            (EntityKind::Subscriber, Some(t)) => entry.2.push(t.clone()),
+            _ => {}
+        }
+    }
+    if nodes.is_empty() {
+        println!("no live nodes (is anything running on domain {}?)", bus.domain_id());
+    } else {
+        println!("{:<28} {:<34} {:>4} {:>4}", "NODE", "ZENOH ID", "PUBS", "SUBS");
+        for (name, (zid, pubs, subs)) in &nodes {
+            println!("{name:<28} {zid:<34} {:>4} {:>4}", pubs.len(), subs.len());
+            for p in pubs {
+                println!("    publishes  {p}");
+            }
+            for s in subs {
+                println!("    subscribes {s}");
+            }
+        }
+    }
+    bus.close().await?;
+    Ok(())
+}
+
+/// A sample as JSON; image pixel data is summarised, not dumped.
+fn to_json<T: Message>(msg: &T) -> anyhow::Result<serde_json::Value> {
+    let mut v = serde_json::to_value(msg)?;
+    if let Some(data) = v.get_mut("data")
+        && let Some(arr) = data.as_array()
+    {
+        *data = serde_json::Value::String(format!("<{} bytes>", arr.len()));
+    }
+    Ok(v)
+}
+
+/// Echo shows everything in order; no deadline, so a slow link is still visible.
+fn echo_guard(bus: &Bus, spec: &TopicSpec) -> GuardSettings {
+    GuardSettings {
+        deadline_ns: None,
+        ..bus.guard_settings(spec)
+    }
+}
+
+async fn echo_typed<T: Message>(
+    bus: &Bus,
+    spec: &TopicSpec,
+    format: Format,
+    count: Option<u64>,
+    until: Option<Instant>,
+) -> anyhow::Result<()> {
+    let topic = Topic::<T>::from_spec(spec).context("topic type mismatch")?;
+    let sub = bus.subscriber_with(&topic, echo_guard(bus, spec)).await?;
+    let mut n = 0u64;
+    loop {
+        if count.is_some_and(|c| n >= c) || until.is_some_and(|u| Instant::now() >= u) {
+            break;
+        }
+        let Some(r) = sub.recv_timeout(Duration::from_millis(200)).await else {
+            continue;
+        };
+        n += 1;
+        let mut v = to_json(&r.msg)?;
+        if let Some(obj) = v.as_object_mut() {
+            obj.insert(
+                "_meta".into(),
+                serde_json::json!({
+                    "sequence": r.sequence,
+                    "latency_ms": r.latency_ns() as f64 / 1e6,
+                }),
+            );
+        }
+        match format {
+            Format::Json => println!("{}", serde_json::to_string(&v)?),
+            Format::Yaml => print!("---\n{}", serde_yaml::to_string(&v)?),
+        }
+    }
+    let s = sub.stats();
+    if s.rejected() > 0 {
+        eprintln!(
+            "dropped: {} out-of-order, {} undecodable, {} without attachment",
+            s.dropped_out_of_order, s.decode_errors, s.bad_attachment
+        );
+    }
+    Ok(())
+}
+
+fn deadline(duration_s: Option<f64>) -> anyhow::Result<Option<Instant>> {
+    match duration_s {
+        None => Ok(None),
+        Some(s) if s.is_finite() && s > 0.0 => Ok(Some(Instant::now() + Duration::from_secs_f64(s))),
+        Some(s) => bail!("--duration-s must be a positive number, got {s}"),
+    }
+}
+
+pub async fn echo(
+    cfg: &BusConfig,
+    name: &str,
+    format: Format,
+    count: Option<u64>,
+    duration_s: Option<f64>,
+) -> anyhow::Result<()> {
+    let spec = spec_or_bail(name)?;
+    let until = deadline(duration_s)?;
+    let bus = open(cfg).await?;
+    dispatch!(spec, echo_typed(&bus, spec, format, count, until))?;
+    bus.close().await?;
+    Ok(())
+}
+
+/// Type-erased view of a subscriber's statistics.
+trait Watched {
+    fn spec(&self) -> &TopicSpec;
+    fn stats(&self) -> StatsSnapshot;
+}
+
+impl<T: Message> Watched for Subscriber<T> {
+    fn spec(&self) -> &TopicSpec {
+        Subscriber::spec(self)
+    }
+    fn stats(&self) -> StatsSnapshot {
+        Subscriber::stats(self)
+    }
+}
+
+async fn watch_typed<T: Message>(
+    bus: &Bus,
+    spec: &TopicSpec,
+) -> anyhow::Result<Box<dyn Watched>> {
+    let topic = Topic::<T>::from_spec(spec).context("topic type mismatch")?;
+    Ok(Box::new(bus.subscriber(&topic).await?))
+}
+
+/// One line of the monitor table.
+pub fn monitor_line(spec: &TopicSpec, now: &StatsSnapshot, before: &StatsSnapshot, dt_s: f64) -> String {
+    let rate = (now.accepted - before.accepted) as f64 / dt_s.max(1e-9);
+    format!(
+        "{:<36} {:>8.1} {:>8.1} {:>9.2} {:>9.2} {:>7} {:>7} {:>7} {:>7}",
+        format!("/{}", spec.name),
+        rate,
+        spec.rate_hz,
+        now.latency_p50_us as f64 / 1000.0,
+        now.latency_p99_us as f64 / 1000.0,
+        now.dropped_stale + now.dropped_from_future,
+        now.dropped_out_of_order,
+        now.decode_errors + now.bad_attachment,
+        now.accepted,
+    )
+}
+
+pub async fn monitor(cfg: &BusConfig, only: Option<&str>, duration_s: Option<f64>) -> anyhow::Result<()> {
+    let specs: Vec<&'static TopicSpec> = match only {
+        Some(name) => vec![spec_or_bail(name)?],
+        None => topics::ALL.iter().collect(),
+    };
+    let until = deadline(duration_s)?;
+    let bus = open(cfg).await?;
+    let mut subs: Vec<Box<dyn Watched>> = Vec::new();
+    for spec in &specs {
+        subs.push(dispatch!(*spec, watch_typed(&bus, spec))?);
+    }
+    let mut before: Vec<StatsSnapshot> = subs.iter().map(|s| s.stats()).collect();
+    let mut t_before = Instant::now();
+    let mut ticker = tokio::time::interval(Duration::from_secs(1));
+    ticker.tick().await;
+    loop {
+        tokio::select! {
+            _ = ticker.tick() => {}
+            _ = tokio::signal::ctrl_c() => break,
+        }
+        let dt = t_before.elapsed().as_secs_f64();
+        t_before = Instant::now();
+        println!(
+            "{:<36} {:>8} {:>8} {:>9} {:>9} {:>7} {:>7} {:>7} {:>7}",
+            "TOPIC", "RATE Hz", "NOMINAL", "p50 ms", "p99 ms", "STALE", "ORDER", "BAD", "TOTAL"
+        );
+        for (sub, prev) in subs.iter().zip(before.iter_mut()) {
+            let now = sub.stats();
+            println!("{}", monitor_line(sub.spec(), &now, prev, dt));
+            *prev = now;
+        }
+        println!();
+        if until.is_some_and(|u| Instant::now() >= u) {
+            break;
+        }
+    }
+    drop(subs);
+    bus.close().await?;
+    Ok(())
+}

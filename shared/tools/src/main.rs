@@ -1,0 +1,108 @@
+//! `teleop`: the command-line tool to inspect a running system, in the spirit of
+//! `ros2 topic` / `ros2 node`, and to launch the whole system on one machine.
+
+mod inspect;
+mod launch;
+
+use clap::{Parser, Subcommand};
+use teleop_bus::ZenohArgs;
+
+#[derive(Debug, Parser)]
+#[command(version, about = "Inspect and run the dexterous hand-arm teleoperation system")]
+struct Cli {
+    #[command(flatten)]
+    zenoh: ZenohArgs,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// The topic table of the system (static, from code).
+    Topics {
+        /// Print as a Markdown table (as in docs/topics.md).
+        #[arg(long)]
+        markdown: bool,
+    },
+    /// Live topics.
+    #[command(subcommand)]
+    Topic(TopicCommand),
+    /// Live nodes.
+    #[command(subcommand)]
+    Node(NodeCommand),
+    /// Rates, latency and drops of every topic of the table, refreshed every second.
+    Monitor {
+        /// Stop after this many seconds.
+        #[arg(long)]
+        duration_s: Option<f64>,
+    },
+    /// Start every node of the system on this machine (simulated hardware).
+    Launch(launch::LaunchArgs),
+}
+
+#[derive(Debug, Subcommand)]
+enum TopicCommand {
+    /// Topics with at least one live publisher or subscriber.
+    List {
+        /// How long to collect announcements, seconds.
+        #[arg(long, default_value_t = 1.0)]
+        wait_s: f64,
+    },
+    /// Print samples of a topic, decoded.
+    Echo {
+        topic: String,
+        /// Output format.
+        #[arg(long, value_enum, default_value_t = inspect::Format::Yaml)]
+        format: inspect::Format,
+        /// Stop after this many samples.
+        #[arg(long, short = 'n')]
+        count: Option<u64>,
+        /// Stop after this many seconds.
+        #[arg(long)]
+        duration_s: Option<f64>,
+    },
+    /// Rate, latency and drops of a topic, every second.
+    Hz {
+        topic: String,
+        /// Stop after this many seconds.
+        #[arg(long)]
+        duration_s: Option<f64>,
+    },
+}
+
+#[derive(Debug, Subcommand)]
+enum NodeCommand {
+    /// Nodes alive now, with their publishers and subscribers.
+    List {
+        /// How long to collect announcements, seconds.
+        #[arg(long, default_value_t = 1.0)]
+        wait_s: f64,
+    },
+}
+
+#[tokio::main]
+async fn main() -> anyhow::Result<()> {
+    teleop_bus::init_tracing();
+    let cli = Cli::parse();
+    let mut bus_cfg = teleop_bus::BusConfig::default();
+    cli.zenoh.apply(&mut bus_cfg);
+    match cli.command {
+        Command::Topics { markdown } => {
+            inspect::print_table(markdown);
+            Ok(())
+        }
+        Command::Topic(TopicCommand::List { wait_s }) => inspect::topic_list(&bus_cfg, wait_s).await,
+        Command::Topic(TopicCommand::Echo {
+            topic,
+            format,
+            count,
+            duration_s,
+        }) => inspect::echo(&bus_cfg, &topic, format, count, duration_s).await,
+        Command::Topic(TopicCommand::Hz { topic, duration_s }) => {
+            inspect::monitor(&bus_cfg, Some(&topic), duration_s).await
+        }
+        Command::Node(NodeCommand::List { wait_s }) => inspect::node_list(&bus_cfg, wait_s).await,
+        Command::Monitor { duration_s } => inspect::monitor(&bus_cfg, None, duration_s).await,
+        Command::Launch(args) => launch::launch(args, &cli.zenoh).await,
+    }
+}
