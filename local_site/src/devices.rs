@@ -83,11 +83,16 @@ impl SimulatedOperatorConfig {
         ];
         for (name, v) in positive {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!("operator.{name} must be a positive number, got {v}"));
+                return Err(format!(
+                    "operator.{name} must be a positive number, got {v}"
+                ));
             }
         }
         if !(self.noise_m.is_finite() && self.noise_m >= 0.0) {
-            return Err(format!("operator.noise_m must be >= 0, got {}", self.noise_m));
+            return Err(format!(
+                "operator.noise_m must be >= 0, got {}",
+                self.noise_m
+            ));
         }
         if !(self.motion_scale > 0.0 && self.motion_scale <= 1.0) {
             return Err(format!(

@@ -9,9 +9,7 @@ use std::time::Duration;
 use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
 use teleop_bus::{Bus, BusConfig, NodeConfig, StatusReporter, topics};
-use teleop_msgs::{
-    Header, Lifecycle, OperatorInput, Point, Pose, PoseStamped, Quaternion, Time,
-};
+use teleop_msgs::{Header, Lifecycle, OperatorInput, Point, Pose, PoseStamped, Quaternion, Time};
 use tokio::time::MissedTickBehavior;
 
 use crate::devices::{OperatorDevice, SimulatedOperator, SimulatedOperatorConfig, WristTracker};
@@ -101,7 +99,10 @@ impl TrackerCounters {
         vec![
             ("wrist_pose.published".into(), self.poses_published),
             ("wrist_pose.missing".into(), self.poses_missing),
-            ("wrist_pose.rejected_non_finite".into(), self.poses_non_finite),
+            (
+                "wrist_pose.rejected_non_finite".into(),
+                self.poses_non_finite,
+            ),
             ("operator_input.published".into(), self.inputs_published),
         ]
     }
@@ -111,7 +112,10 @@ impl TrackerCounters {
 ///
 /// # Errors
 /// Bus errors (session, declarations).
-pub async fn run(cfg: WristTrackerConfig, duration: Option<Duration>) -> anyhow::Result<TrackerCounters> {
+pub async fn run(
+    cfg: WristTrackerConfig,
+    duration: Option<Duration>,
+) -> anyhow::Result<TrackerCounters> {
     let bus = Bus::open(&cfg.node_name, &cfg.bus).await?;
     let pose_pub = bus.publisher(&topics::WRIST_POSE).await?;
     let input_pub = bus.publisher(&topics::OPERATOR_INPUT).await?;

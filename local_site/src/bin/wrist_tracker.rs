@@ -21,7 +21,11 @@ struct Cli {
 async fn main() -> anyhow::Result<()> {
     teleop_bus::init_tracing();
     let cli = Cli::parse();
-    let Some(cfg) = cli.node.load::<WristTrackerConfig>().context("loading configuration")? else {
+    let Some(cfg) = cli
+        .node
+        .load::<WristTrackerConfig>()
+        .context("loading configuration")?
+    else {
         return Ok(());
     };
     let duration = match cli.duration_s {

@@ -85,9 +85,15 @@ mod tests {
 
     #[test]
     fn rejects_wrong_lengths() {
-        assert_eq!(Attachment::from_bytes(&[0; 32]), Err(AttachmentError::Length(32)));
+        assert_eq!(
+            Attachment::from_bytes(&[0; 32]),
+            Err(AttachmentError::Length(32))
+        );
         let mut b = [0u8; 33];
         b[16] = 15;
-        assert_eq!(Attachment::from_bytes(&b), Err(AttachmentError::GidLength(15)));
+        assert_eq!(
+            Attachment::from_bytes(&b),
+            Err(AttachmentError::GidLength(15))
+        );
     }
 }

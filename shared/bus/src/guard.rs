@@ -24,11 +24,18 @@ pub struct GuardSettings {
 pub enum Verdict {
     Accept,
     /// Sequence number not newer than `last` from this publisher.
-    OutOfOrder { sequence: i64, last: i64 },
+    OutOfOrder {
+        sequence: i64,
+        last: i64,
+    },
     /// Older than the deadline.
-    Stale { age_ns: i64 },
+    Stale {
+        age_ns: i64,
+    },
     /// Source timestamp further in the future than the clock tolerance.
-    FromFuture { ahead_ns: i64 },
+    FromFuture {
+        ahead_ns: i64,
+    },
 }
 
 /// Most publishers remembered per topic; beyond this the guard forgets the publisher
@@ -120,11 +127,17 @@ mod tests {
         assert_eq!(g.check(&att(1, 5, t), t), Verdict::Accept);
         assert_eq!(
             g.check(&att(1, 5, t), t),
-            Verdict::OutOfOrder { sequence: 5, last: 5 }
+            Verdict::OutOfOrder {
+                sequence: 5,
+                last: 5
+            }
         );
         assert_eq!(
             g.check(&att(1, 4, t), t),
-            Verdict::OutOfOrder { sequence: 4, last: 5 }
+            Verdict::OutOfOrder {
+                sequence: 4,
+                last: 5
+            }
         );
         // Another publisher has its own sequence.
         assert_eq!(g.check(&att(2, 1, t), t), Verdict::Accept);
@@ -146,15 +159,24 @@ mod tests {
             Verdict::FromFuture { ahead_ns: 6 * MS }
         );
         // Extreme timestamps do not overflow.
-        assert!(matches!(g.check(&att(1, 5, i64::MIN), now), Verdict::Stale { .. }));
-        assert!(matches!(g.check(&att(1, 6, i64::MAX), now), Verdict::FromFuture { .. }));
+        assert!(matches!(
+            g.check(&att(1, 5, i64::MIN), now),
+            Verdict::Stale { .. }
+        ));
+        assert!(matches!(
+            g.check(&att(1, 6, i64::MAX), now),
+            Verdict::FromFuture { .. }
+        ));
     }
 
     #[test]
     fn stale_sample_does_not_advance_sequence() {
         let mut g = guard();
         let now = 10_000 * MS;
-        assert!(matches!(g.check(&att(1, 9, now - 500 * MS), now), Verdict::Stale { .. }));
+        assert!(matches!(
+            g.check(&att(1, 9, now - 500 * MS), now),
+            Verdict::Stale { .. }
+        ));
         assert_eq!(g.check(&att(1, 2, now), now), Verdict::Accept);
     }
 

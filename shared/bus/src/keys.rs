@@ -94,7 +94,11 @@ pub struct GraphEntity {
 impl GraphEntity {
     /// The node's name with its namespace, e.g. `/pr2_arm_controller`.
     pub fn fq_node_name(&self) -> String {
-        format!("{}/{}", self.namespace.trim_end_matches('/'), self.node_name)
+        format!(
+            "{}/{}",
+            self.namespace.trim_end_matches('/'),
+            self.node_name
+        )
     }
 
     /// The ROS 2 type name (`sensor_msgs/msg/JointState`) from the DDS name.
@@ -121,7 +125,8 @@ pub fn liveliness_key(entity: &GraphEntity, qos: &str) -> String {
         mangle(&entity.namespace),
         mangle(&entity.node_name)
     );
-    if let (Some(topic), Some(ty), Some(hash)) = (&entity.topic, &entity.dds_type, &entity.type_hash)
+    if let (Some(topic), Some(ty), Some(hash)) =
+        (&entity.topic, &entity.dds_type, &entity.type_hash)
     {
         let topic = format!("/{}", normalize_topic(topic));
         key.push_str(&format!("/{}/{ty}/{hash}/{qos}", mangle(&topic)));
@@ -204,7 +209,10 @@ mod tests {
         );
         let back = parse_liveliness_key(&key).expect("parses");
         assert_eq!(back, e);
-        assert_eq!(back.ros_type_name().as_deref(), Some("geometry_msgs/msg/PoseStamped"));
+        assert_eq!(
+            back.ros_type_name().as_deref(),
+            Some("geometry_msgs/msg/PoseStamped")
+        );
         assert_eq!(back.fq_node_name(), "/wrist_tracker");
         assert!(parse_liveliness_key("@ros2_lv/0/x").is_none());
         assert!(parse_liveliness_key("@ros2_lv/zz/z/0/0/NN/%/%/n").is_none());

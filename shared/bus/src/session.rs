@@ -382,7 +382,11 @@ impl<T: Message> Publisher<T> {
     ///
     /// # Errors
     /// Zenoh errors.
-    pub fn put_raw(&self, payload: Vec<u8>, attachment: Option<Attachment>) -> Result<(), BusError> {
+    pub fn put_raw(
+        &self,
+        payload: Vec<u8>,
+        attachment: Option<Attachment>,
+    ) -> Result<(), BusError> {
         let mut put = self.inner.put(payload);
         if let Some(a) = attachment {
             put = put.attachment(a.to_bytes().to_vec());
@@ -491,7 +495,12 @@ impl<T: Message> Shared<T> {
             Verdict::Accept => {}
             Verdict::OutOfOrder { sequence, last } => {
                 self.stats.count(Event::OutOfOrder);
-                tracing::debug!(topic = self.spec.name, sequence, last, "out-of-order sample dropped");
+                tracing::debug!(
+                    topic = self.spec.name,
+                    sequence,
+                    last,
+                    "out-of-order sample dropped"
+                );
                 return;
             }
             Verdict::Stale { age_ns } => {
@@ -520,7 +529,8 @@ impl<T: Message> Shared<T> {
             }
         };
         self.stats.count(Event::Accepted);
-        self.stats.record_latency_ns(now_ns - att.source_timestamp_ns);
+        self.stats
+            .record_latency_ns(now_ns - att.source_timestamp_ns);
         let received = Received {
             msg,
             sequence: att.sequence,
@@ -670,7 +680,9 @@ pub struct NodeWatch {
 
 impl std::fmt::Debug for NodeWatch {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("NodeWatch").field("alive", &self.alive()).finish()
+        f.debug_struct("NodeWatch")
+            .field("alive", &self.alive())
+            .finish()
     }
 }
 
@@ -694,7 +706,11 @@ impl NodeWatch {
 
     /// Takes the next pending event, if any.
     pub fn try_event(&self) -> Option<NodeEvent> {
-        self.state.events.lock().ok().and_then(|mut q| q.pop_front())
+        self.state
+            .events
+            .lock()
+            .ok()
+            .and_then(|mut q| q.pop_front())
     }
 
     /// Waits up to `timeout` for the next event.

@@ -177,7 +177,10 @@ mod tests {
         assert_eq!(snap.received, 100);
         assert_eq!(snap.rejected(), 2);
         assert!((49_000..=51_000).contains(&snap.latency_p50_us), "{snap:?}");
-        assert!((98_000..=100_100).contains(&snap.latency_p99_us), "{snap:?}");
+        assert!(
+            (98_000..=100_100).contains(&snap.latency_p99_us),
+            "{snap:?}"
+        );
         let named = s.named_counters("wrist_pose");
         assert!(named.contains(&("wrist_pose.rejected_stale".into(), 1)));
     }

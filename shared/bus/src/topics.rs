@@ -162,9 +162,10 @@ impl<T: Message> Topic<T> {
     }
 
     /// The same topic under another name (e.g. a second camera), same type and QoS.
-    pub const fn renamed(self, name: &'static str) -> Self {
+    pub const fn renamed(self, name: &'static str, doc: &'static str) -> Self {
         let mut spec = self.spec;
         spec.name = name;
+        spec.doc = doc;
         Self {
             spec,
             _type: PhantomData,
@@ -239,7 +240,10 @@ pub const REMOTE_CAMERA_TOP: Topic<Image> = Topic::new(
     "Top view of the robot's workspace (rgb8), rate-limited",
 );
 /// Remote camera, side view.
-pub const REMOTE_CAMERA_SIDE: Topic<Image> = REMOTE_CAMERA_TOP.renamed("teleop/remote_camera/side/image");
+pub const REMOTE_CAMERA_SIDE: Topic<Image> = REMOTE_CAMERA_TOP.renamed(
+    "teleop/remote_camera/side/image",
+    "Side view of the robot's workspace (rgb8), rate-limited",
+);
 /// Depth image of the operator's hand from the camera on the UR5.
 pub const HAND_DEPTH: Topic<Image> = Topic::new(
     "teleop/local_camera/depth",
@@ -319,13 +323,21 @@ mod tests {
     #[test]
     fn names_are_unique_and_well_formed() {
         for (i, a) in ALL.iter().enumerate() {
-            assert!(!a.name.starts_with('/') && !a.name.ends_with('/'), "{}", a.name);
+            assert!(
+                !a.name.starts_with('/') && !a.name.ends_with('/'),
+                "{}",
+                a.name
+            );
             assert!(a.rate_hz > 0.0, "{}", a.name);
             for b in &ALL[i + 1..] {
                 assert_ne!(a.name, b.name);
             }
             if a.qos == QosClass::Control {
-                assert!(a.deadline_ms.is_some(), "control topic {} needs a deadline", a.name);
+                assert!(
+                    a.deadline_ms.is_some(),
+                    "control topic {} needs a deadline",
+                    a.name
+                );
             }
         }
         assert_eq!(find("/teleop/wrist_pose/"), Some(&WRIST_POSE.spec));

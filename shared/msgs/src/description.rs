@@ -219,11 +219,7 @@ impl MsgDescription {
 }
 
 fn write_type(out: &mut String, d: &'static MsgDescription) {
-    let _ = write!(
-        out,
-        "{{\"type_name\": \"{}\", \"fields\": [",
-        d.type_name
-    );
+    let _ = write!(out, "{{\"type_name\": \"{}\", \"fields\": [", d.type_name);
     for (i, f) in d.fields.iter().enumerate() {
         if i > 0 {
             out.push_str(", ");
@@ -261,13 +257,19 @@ pub enum WireError {
     },
     #[error("field `{field}`: boolean byte {value} is neither 0 nor 1")]
     BadBool { field: String, value: u8 },
+    /// A non-empty string whose last byte (at `offset`, header included) is not the NUL
+    /// terminator CDR requires. Refused because the decoder would silently drop that
+    /// byte, turning `"abc"` into `"ab"`.
+    #[error("field `{field}`: string ending at offset {offset} is not NUL-terminated")]
+    UnterminatedString { field: String, offset: usize },
 }
 
 /// Walks `bytes` (header included) with `desc` as the schema and checks that every
-/// length field fits in what is left, before any decoder allocates for it.
+/// length field fits in what is left, before any decoder allocates for it; also that
+/// booleans are 0 or 1 and non-empty strings end in NUL.
 ///
 /// # Errors
-/// [`WireError`] naming the first field that does not fit.
+/// [`WireError`] naming the first field that does not fit or is malformed.
 pub fn check_wire(desc: &'static MsgDescription, bytes: &[u8]) -> Result<(), WireError> {
     if bytes.len() < 4 {
         return Err(WireError::NoHeader { len: bytes.len() });
@@ -363,8 +365,21 @@ impl Walker<'_> {
         match base {
             BaseType::Nested(get) => self.message(get(), name),
             BaseType::String => {
+                // Length includes the terminating NUL. A length of 0 (no terminator at
+                // all) decodes as "" and is accepted; anything longer must end in NUL.
                 let len = self.u32(name)?;
-                self.take(name, 1, u64::from(len)).map(|_| ())
+                let at = self.take(name, 1, u64::from(len))?;
+                if len > 0 {
+                    // `take` succeeded, so `at + len <= data.len()` and the cast is exact.
+                    let last = at + len as usize - 1;
+                    if self.data[last] != 0 {
+                        return Err(WireError::UnterminatedString {
+                            field: name.to_owned(),
+                            offset: last + 4,
+                        });
+                    }
+                }
+                Ok(())
             }
             BaseType::Bool => {
                 let at = self.take(name, 1, 1)?;

@@ -57,9 +57,11 @@ pub enum CodecError {
 
 /// Serializes `msg` as CDR little-endian with the `00 01 00 00` encapsulation header.
 ///
+/// Strings are written as their UTF-8 bytes plus a terminating NUL, so non-ASCII text is
+/// accepted and round-trips (ROS 2 `string` is UTF-8 by convention).
+///
 /// # Errors
-/// [`CodecError::Encode`] if a string is not ASCII (a limitation of the `cdr` crate) or a
-/// sequence is longer than `u32::MAX`.
+/// [`CodecError::Encode`] if a string or sequence is longer than `u32::MAX`.
 pub fn encode<T: Message>(msg: &T) -> Result<Vec<u8>, CodecError> {
     cdr::serialize::<_, _, cdr::CdrLe>(msg, cdr::Infinite).map_err(|e| CodecError::Encode {
         type_name: T::TYPE_NAME,

@@ -25,14 +25,19 @@ macro_rules! message {
 // ---------------------------------------------------------------- builtin_interfaces
 
 /// `builtin_interfaces/msg/Time`.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[derive(
+    Debug, Clone, Copy, Default, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize,
+)]
 pub struct Time {
     pub sec: i32,
     pub nanosec: u32,
 }
-message!(Time, "builtin_interfaces/msg/Time",
+message!(
+    Time,
+    "builtin_interfaces/msg/Time",
     "RIHS01_b106235e25a4c5ed35098aa0a61a3ee9c9b18d197f398b0e4206cea9acf9c197",
-    [F::new("sec", B::Int32), F::new("nanosec", B::Uint32)]);
+    [F::new("sec", B::Int32), F::new("nanosec", B::Uint32)]
+);
 
 impl Time {
     /// From nanoseconds since the Unix epoch (saturating outside the `i32` seconds range).
@@ -74,9 +79,15 @@ pub struct Header {
     pub stamp: Time,
     pub frame_id: String,
 }
-message!(Header, "std_msgs/msg/Header",
+message!(
+    Header,
+    "std_msgs/msg/Header",
     "RIHS01_f49fb3ae2cf070f793645ff749683ac6b06203e41c891e17701b1cb597ce6a01",
-    [F::new("stamp", B::Nested(Time::description)), F::new("frame_id", B::String)]);
+    [
+        F::new("stamp", B::Nested(Time::description)),
+        F::new("frame_id", B::String)
+    ]
+);
 
 impl Header {
     pub fn new(stamp: Time, frame_id: impl Into<String>) -> Self {
@@ -96,9 +107,16 @@ pub struct Point {
     pub y: f64,
     pub z: f64,
 }
-message!(Point, "geometry_msgs/msg/Point",
+message!(
+    Point,
+    "geometry_msgs/msg/Point",
     "RIHS01_6963084842a9b04494d6b2941d11444708d892da2f4b09843b9c43f42a7f6881",
-    [F::new("x", B::Float64), F::new("y", B::Float64), F::new("z", B::Float64)]);
+    [
+        F::new("x", B::Float64),
+        F::new("y", B::Float64),
+        F::new("z", B::Float64)
+    ]
+);
 
 /// `geometry_msgs/msg/Vector3`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
@@ -107,9 +125,16 @@ pub struct Vector3 {
     pub y: f64,
     pub z: f64,
 }
-message!(Vector3, "geometry_msgs/msg/Vector3",
+message!(
+    Vector3,
+    "geometry_msgs/msg/Vector3",
     "RIHS01_cc12fe83e4c02719f1ce8070bfd14aecd40f75a96696a67a2a1f37f7dbb0765d",
-    [F::new("x", B::Float64), F::new("y", B::Float64), F::new("z", B::Float64)]);
+    [
+        F::new("x", B::Float64),
+        F::new("y", B::Float64),
+        F::new("z", B::Float64)
+    ]
+);
 
 /// `geometry_msgs/msg/Quaternion` (x, y, z, w; identity is w = 1).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -119,14 +144,27 @@ pub struct Quaternion {
     pub z: f64,
     pub w: f64,
 }
-message!(Quaternion, "geometry_msgs/msg/Quaternion",
+message!(
+    Quaternion,
+    "geometry_msgs/msg/Quaternion",
     "RIHS01_8a765f66778c8ff7c8ab94afcc590a2ed5325a1d9a076ffff38fbce36f458684",
-    [F::new("x", B::Float64), F::new("y", B::Float64), F::new("z", B::Float64), F::new("w", B::Float64)]);
+    [
+        F::new("x", B::Float64),
+        F::new("y", B::Float64),
+        F::new("z", B::Float64),
+        F::new("w", B::Float64)
+    ]
+);
 
 impl Default for Quaternion {
     /// The identity rotation, as ROS 2's default value `w = 1`.
     fn default() -> Self {
-        Self { x: 0.0, y: 0.0, z: 0.0, w: 1.0 }
+        Self {
+            x: 0.0,
+            y: 0.0,
+            z: 0.0,
+            w: 1.0,
+        }
     }
 }
 
@@ -136,16 +174,24 @@ pub struct Pose {
     pub position: Point,
     pub orientation: Quaternion,
 }
-message!(Pose, "geometry_msgs/msg/Pose",
+message!(
+    Pose,
+    "geometry_msgs/msg/Pose",
     "RIHS01_d501954e9476cea2996984e812054b68026ae0bfae789d9a10b23daf35cc90fa",
-    [F::new("position", B::Nested(Point::description)), F::new("orientation", B::Nested(Quaternion::description))]);
+    [
+        F::new("position", B::Nested(Point::description)),
+        F::new("orientation", B::Nested(Quaternion::description))
+    ]
+);
 
 impl Pose {
     /// True when every component is finite.
     pub fn is_finite(&self) -> bool {
         let p = &self.position;
         let q = &self.orientation;
-        [p.x, p.y, p.z, q.x, q.y, q.z, q.w].iter().all(|v| v.is_finite())
+        [p.x, p.y, p.z, q.x, q.y, q.z, q.w]
+            .iter()
+            .all(|v| v.is_finite())
     }
 }
 
@@ -155,9 +201,15 @@ pub struct PoseStamped {
     pub header: Header,
     pub pose: Pose,
 }
-message!(PoseStamped, "geometry_msgs/msg/PoseStamped",
+message!(
+    PoseStamped,
+    "geometry_msgs/msg/PoseStamped",
     "RIHS01_10f3786d7d40fd2b54367835614bff85d4ad3b5dab62bf8bca0cc232d73b4cd8",
-    [F::new("header", B::Nested(Header::description)), F::new("pose", B::Nested(Pose::description))]);
+    [
+        F::new("header", B::Nested(Header::description)),
+        F::new("pose", B::Nested(Pose::description))
+    ]
+);
 
 /// `geometry_msgs/msg/Transform`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
@@ -165,9 +217,15 @@ pub struct Transform {
     pub translation: Vector3,
     pub rotation: Quaternion,
 }
-message!(Transform, "geometry_msgs/msg/Transform",
+message!(
+    Transform,
+    "geometry_msgs/msg/Transform",
     "RIHS01_beb83fbe698636351461f6f35d1abb20010c43d55374d81bd041f1ba2581fddc",
-    [F::new("translation", B::Nested(Vector3::description)), F::new("rotation", B::Nested(Quaternion::description))]);
+    [
+        F::new("translation", B::Nested(Vector3::description)),
+        F::new("rotation", B::Nested(Quaternion::description))
+    ]
+);
 
 /// `geometry_msgs/msg/TransformStamped`.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
@@ -176,10 +234,16 @@ pub struct TransformStamped {
     pub child_frame_id: String,
     pub transform: Transform,
 }
-message!(TransformStamped, "geometry_msgs/msg/TransformStamped",
+message!(
+    TransformStamped,
+    "geometry_msgs/msg/TransformStamped",
     "RIHS01_0a241f87d04668d94099cbb5ba11691d5ad32c2f29682e4eb5653424bd275206",
-    [F::new("header", B::Nested(Header::description)), F::new("child_frame_id", B::String),
-     F::new("transform", B::Nested(Transform::description))]);
+    [
+        F::new("header", B::Nested(Header::description)),
+        F::new("child_frame_id", B::String),
+        F::new("transform", B::Nested(Transform::description))
+    ]
+);
 
 // ---------------------------------------------------------------- sensor_msgs
 
@@ -192,10 +256,18 @@ pub struct JointState {
     pub velocity: Vec<f64>,
     pub effort: Vec<f64>,
 }
-message!(JointState, "sensor_msgs/msg/JointState",
+message!(
+    JointState,
+    "sensor_msgs/msg/JointState",
     "RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e",
-    [F::new("header", B::Nested(Header::description)), F::seq("name", B::String),
-     F::seq("position", B::Float64), F::seq("velocity", B::Float64), F::seq("effort", B::Float64)]);
+    [
+        F::new("header", B::Nested(Header::description)),
+        F::seq("name", B::String),
+        F::seq("position", B::Float64),
+        F::seq("velocity", B::Float64),
+        F::seq("effort", B::Float64)
+    ]
+);
 
 /// `sensor_msgs/msg/Image`. Depth is `16UC1` in millimetres (0 = no return) or `32FC1`
 /// in metres; colour is `rgb8`.
@@ -210,11 +282,20 @@ pub struct Image {
     #[serde(with = "serde_bytes")]
     pub data: Vec<u8>,
 }
-message!(Image, "sensor_msgs/msg/Image",
+message!(
+    Image,
+    "sensor_msgs/msg/Image",
     "RIHS01_d31d41a9a4c4bc8eae9be757b0beed306564f7526c88ea6a4588fb9582527d47",
-    [F::new("header", B::Nested(Header::description)), F::new("height", B::Uint32), F::new("width", B::Uint32),
-     F::new("encoding", B::String), F::new("is_bigendian", B::Uint8), F::new("step", B::Uint32),
-     F::seq("data", B::Uint8)]);
+    [
+        F::new("header", B::Nested(Header::description)),
+        F::new("height", B::Uint32),
+        F::new("width", B::Uint32),
+        F::new("encoding", B::String),
+        F::new("is_bigendian", B::Uint8),
+        F::new("step", B::Uint32),
+        F::seq("data", B::Uint8)
+    ]
+);
 
 /// Encodings of [`Image`] the project produces.
 pub mod encodings {
@@ -309,10 +390,18 @@ pub struct OperatorInput {
     /// tasks). Valid range (0, 1].
     pub motion_scale: f64,
 }
-message!(OperatorInput, "teleop_msgs/msg/OperatorInput",
+message!(
+    OperatorInput,
+    "teleop_msgs/msg/OperatorInput",
     "RIHS01_a9311ceb88718e6f27c808f700d1bbad5ec0ccd3f25fb90f555d462d620611ab",
-    [F::new("header", B::Nested(Header::description)), F::new("clutch", B::Bool), F::new("enable", B::Bool),
-     F::new("camera_stop", B::Bool), F::new("motion_scale", B::Float64)]);
+    [
+        F::new("header", B::Nested(Header::description)),
+        F::new("clutch", B::Bool),
+        F::new("enable", B::Bool),
+        F::new("camera_stop", B::Bool),
+        F::new("motion_scale", B::Float64)
+    ]
+);
 
 impl Default for OperatorInput {
     /// Everything released: nothing moves.
@@ -338,10 +427,19 @@ pub struct FingertipPressures {
     pub lf: f64,
     pub th: f64,
 }
-message!(FingertipPressures, "teleop_msgs/msg/FingertipPressures",
+message!(
+    FingertipPressures,
+    "teleop_msgs/msg/FingertipPressures",
     "RIHS01_6e9f1f372dadcc239ffe9dc82437470396066bcf8e08e0cc6e9e2b98f5f399fc",
-    [F::new("header", B::Nested(Header::description)), F::new("ff", B::Float64), F::new("mf", B::Float64),
-     F::new("rf", B::Float64), F::new("lf", B::Float64), F::new("th", B::Float64)]);
+    [
+        F::new("header", B::Nested(Header::description)),
+        F::new("ff", B::Float64),
+        F::new("mf", B::Float64),
+        F::new("rf", B::Float64),
+        F::new("lf", B::Float64),
+        F::new("th", B::Float64)
+    ]
+);
 
 impl FingertipPressures {
     /// The five values in the order ff, mf, rf, lf, th.
@@ -402,11 +500,19 @@ pub struct NodeStatus {
     /// Last error text, empty if none.
     pub last_error: String,
 }
-message!(NodeStatus, "teleop_msgs/msg/NodeStatus",
+message!(
+    NodeStatus,
+    "teleop_msgs/msg/NodeStatus",
     "RIHS01_e9ab36cd53de9b842bd28237da566c14b35f9e93152d050477c46abdee6fd004",
-    [F::new("header", B::Nested(Header::description)), F::new("node_name", B::String),
-     F::new("lifecycle_state", B::Uint8), F::seq("counter_names", B::String),
-     F::seq("counter_values", B::Uint64), F::new("last_error", B::String)]);
+    [
+        F::new("header", B::Nested(Header::description)),
+        F::new("node_name", B::String),
+        F::new("lifecycle_state", B::Uint8),
+        F::seq("counter_names", B::String),
+        F::seq("counter_values", B::Uint64),
+        F::new("last_error", B::String)
+    ]
+);
 
 impl NodeStatus {
     pub fn lifecycle(&self) -> Option<Lifecycle> {
@@ -436,7 +542,10 @@ pub fn all_descriptions() -> Vec<(&'static MsgDescription, &'static str)> {
         (JointState::description(), JointState::TYPE_HASH),
         (Image::description(), Image::TYPE_HASH),
         (OperatorInput::description(), OperatorInput::TYPE_HASH),
-        (FingertipPressures::description(), FingertipPressures::TYPE_HASH),
+        (
+            FingertipPressures::description(),
+            FingertipPressures::TYPE_HASH,
+        ),
         (NodeStatus::description(), NodeStatus::TYPE_HASH),
     ]
 }

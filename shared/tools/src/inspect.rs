@@ -21,7 +21,9 @@ pub enum Format {
 
 async fn open(cfg: &BusConfig) -> anyhow::Result<Bus> {
     let name = format!("teleop_cli_{}", std::process::id());
-    Bus::open(&name, cfg).await.context("opening the Zenoh session")
+    Bus::open(&name, cfg)
+        .await
+        .context("opening the Zenoh session")
 }
 
 fn spec_or_bail(name: &str) -> anyhow::Result<&'static TopicSpec> {
@@ -85,7 +87,11 @@ pub async fn topic_list(cfg: &BusConfig, wait_s: f64) -> anyhow::Result<()> {
     for e in g.iter().filter(|e| e.node_name != bus.node_name()) {
         let Some(topic) = &e.topic else { continue };
         let entry = by_topic.entry(topic.clone()).or_insert_with(|| {
-            (e.ros_type_name().unwrap_or_default(), Vec::new(), Vec::new())
+            (
+                e.ros_type_name().unwrap_or_default(),
+                Vec::new(),
+                Vec::new(),
+            )
         });
         match e.kind {
             EntityKind::Publisher => entry.1.push(e.node_name.clone()),
@@ -94,11 +100,21 @@ pub async fn topic_list(cfg: &BusConfig, wait_s: f64) -> anyhow::Result<()> {
         }
     }
     if by_topic.is_empty() {
-        println!("no live topics (is anything running on domain {}?)", bus.domain_id());
+        println!(
+            "no live topics (is anything running on domain {}?)",
+            bus.domain_id()
+        );
     } else {
-        println!("{:<36} {:<36} {:<28} SUBSCRIBERS", "TOPIC", "TYPE", "PUBLISHERS");
+        println!(
+            "{:<36} {:<36} {:<28} SUBSCRIBERS",
+            "TOPIC", "TYPE", "PUBLISHERS"
+        );
         for (topic, (ty, pubs, subs)) in by_topic {
-            println!("{topic:<36} {ty:<36} {:<28} {}", pubs.join(","), subs.join(","));
+            println!(
+                "{topic:<36} {ty:<36} {:<28} {}",
+                pubs.join(","),
+                subs.join(",")
+            );
         }
     }
     bus.close().await?;
@@ -119,9 +135,15 @@ pub async fn node_list(cfg: &BusConfig, wait_s: f64) -> anyhow::Result<()> {
         }
     }
     if nodes.is_empty() {
-        println!("no live nodes (is anything running on domain {}?)", bus.domain_id());
+        println!(
+            "no live nodes (is anything running on domain {}?)",
+            bus.domain_id()
+        );
     } else {
-        println!("{:<28} {:<34} {:>4} {:>4}", "NODE", "ZENOH ID", "PUBS", "SUBS");
+        println!(
+            "{:<28} {:<34} {:>4} {:>4}",
+            "NODE", "ZENOH ID", "PUBS", "SUBS"
+        );
         for (name, (zid, pubs, subs)) in &nodes {
             println!("{name:<28} {zid:<34} {:>4} {:>4}", pubs.len(), subs.len());
             for p in pubs {
@@ -201,7 +223,9 @@ async fn echo_typed<T: Message>(
 fn deadline(duration_s: Option<f64>) -> anyhow::Result<Option<Instant>> {
     match duration_s {
         None => Ok(None),
-        Some(s) if s.is_finite() && s > 0.0 => Ok(Some(Instant::now() + Duration::from_secs_f64(s))),
+        Some(s) if s.is_finite() && s > 0.0 => {
+            Ok(Some(Instant::now() + Duration::from_secs_f64(s)))
+        }
         Some(s) => bail!("--duration-s must be a positive number, got {s}"),
     }
 }
@@ -236,16 +260,18 @@ impl<T: Message> Watched for Subscriber<T> {
     }
 }
 
-async fn watch_typed<T: Message>(
-    bus: &Bus,
-    spec: &TopicSpec,
-) -> anyhow::Result<Box<dyn Watched>> {
+async fn watch_typed<T: Message>(bus: &Bus, spec: &TopicSpec) -> anyhow::Result<Box<dyn Watched>> {
     let topic = Topic::<T>::from_spec(spec).context("topic type mismatch")?;
     Ok(Box::new(bus.subscriber(&topic).await?))
 }
 
 /// One line of the monitor table.
-pub fn monitor_line(spec: &TopicSpec, now: &StatsSnapshot, before: &StatsSnapshot, dt_s: f64) -> String {
+pub fn monitor_line(
+    spec: &TopicSpec,
+    now: &StatsSnapshot,
+    before: &StatsSnapshot,
+    dt_s: f64,
+) -> String {
     let rate = (now.accepted - before.accepted) as f64 / dt_s.max(1e-9);
     format!(
         "{:<36} {:>8.1} {:>8.1} {:>9.2} {:>9.2} {:>7} {:>7} {:>7} {:>7}",
@@ -261,7 +287,11 @@ pub fn monitor_line(spec: &TopicSpec, now: &StatsSnapshot, before: &StatsSnapsho
     )
 }
 
-pub async fn monitor(cfg: &BusConfig, only: Option<&str>, duration_s: Option<f64>) -> anyhow::Result<()> {
+pub async fn monitor(
+    cfg: &BusConfig,
+    only: Option<&str>,
+    duration_s: Option<f64>,
+) -> anyhow::Result<()> {
     let specs: Vec<&'static TopicSpec> = match only {
         Some(name) => vec![spec_or_bail(name)?],
         None => topics::ALL.iter().collect(),

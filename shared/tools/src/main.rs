@@ -8,7 +8,10 @@ use clap::{Parser, Subcommand};
 use teleop_bus::ZenohArgs;
 
 #[derive(Debug, Parser)]
-#[command(version, about = "Inspect and run the dexterous hand-arm teleoperation system")]
+#[command(
+    version,
+    about = "Inspect and run the dexterous hand-arm teleoperation system"
+)]
 struct Cli {
     #[command(flatten)]
     zenoh: ZenohArgs,
@@ -91,7 +94,9 @@ async fn main() -> anyhow::Result<()> {
             inspect::print_table(markdown);
             Ok(())
         }
-        Command::Topic(TopicCommand::List { wait_s }) => inspect::topic_list(&bus_cfg, wait_s).await,
+        Command::Topic(TopicCommand::List { wait_s }) => {
+            inspect::topic_list(&bus_cfg, wait_s).await
+        }
         Command::Topic(TopicCommand::Echo {
             topic,
             format,

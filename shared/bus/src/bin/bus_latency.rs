@@ -38,29 +38,35 @@ use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream, UdpSocket};
 use std::path::PathBuf;
 use std::process::{Child, ChildStdin, Command, Stdio};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, mpsc};
+use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
+use std::sync::{Arc, Condvar, Mutex, mpsc};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::Parser;
 use serde::{Deserialize, Serialize};
-use teleop_bus::attachment::ATTACHMENT_LEN;
+use teleop_bus::attachment::{ATTACHMENT_LEN, Attachment};
 use teleop_bus::topics::{self, Topic};
 use teleop_bus::{Bus, BusConfig, Publisher, Subscriber, ZenohSettings};
 use teleop_msgs::{
     Header, Image, Message, Point, Pose, PoseStamped, Quaternion, Time, unix_nanos_now,
 };
+use zenoh::Wait;
+use zenoh::qos::{CongestionControl, Priority};
 
 /// Pings of case 1: the real wrist-pose topic.
 const POSE_PING: Topic<PoseStamped> = topics::WRIST_POSE;
 /// Echoes of case 1: a bench topic with the wrist pose's type and QoS.
-const POSE_PONG: Topic<PoseStamped> = topics::WRIST_POSE.renamed("teleop/bench/wrist_pose_echo");
+const POSE_PONG: Topic<PoseStamped> = topics::WRIST_POSE.renamed(
+    "teleop/bench/wrist_pose_echo",
+    "benchmark echo of wrist poses",
+);
 /// Pings of case 3: the real hand depth topic.
 const IMAGE_PING: Topic<Image> = topics::HAND_DEPTH;
 /// Echoes of case 3: a bench topic with the depth image's type and QoS.
-const IMAGE_PONG: Topic<Image> = topics::HAND_DEPTH.renamed("teleop/bench/depth_echo");
+const IMAGE_PONG: Topic<Image> =
+    topics::HAND_DEPTH.renamed("teleop/bench/depth_echo", "benchmark echo of depth images");
 
 /// The driver sleeps until this long before a tick, then spins.
 const SPIN: Duration = Duration::from_micros(100);
@@ -322,6 +328,7 @@ struct EchoCase {
 #[derive(Debug, Default, Serialize, Deserialize)]
 struct EchoReport {
     zenoh_pose: EchoCase,
+    zenoh_raw: EchoCase,
     udp_pose: EchoCase,
     zenoh_image: EchoCase,
     tcp_image: EchoCase,
@@ -373,6 +380,8 @@ struct CaseReport {
 struct Ratios {
     pose_zenoh_over_udp_rtt_half_p50: f64,
     pose_zenoh_over_udp_one_way_p50: f64,
+    /// Zenoh transport floor (echo inside the callback) over UDP.
+    pose_zenoh_raw_over_udp_rtt_half_p50: f64,
     image_zenoh_over_tcp_rtt_half_p50: Option<f64>,
     image_zenoh_over_tcp_one_way_p50: Option<f64>,
     pose_goal_max_ratio: f64,
@@ -447,7 +456,8 @@ impl Pacer {
             self.stats.skipped_ticks += u64::from(missed);
             self.next += self.period * missed;
         }
-        self.delays_ns.push(ns(Instant::now().saturating_duration_since(self.next)));
+        self.delays_ns
+            .push(ns(Instant::now().saturating_duration_since(self.next)));
         self.next += self.period;
     }
 
@@ -459,7 +469,11 @@ impl Pacer {
 
 /// Repeats `recv` until it yields `index` (true), nothing within `timeout` (false).
 /// Older echoes (after an earlier timeout) are skipped.
-fn await_echo(mut recv: impl FnMut(Duration) -> Option<i64>, index: i64, timeout: Duration) -> bool {
+fn await_echo(
+    mut recv: impl FnMut(Duration) -> Option<i64>,
+    index: i64,
+    timeout: Duration,
+) -> bool {
     let deadline = Instant::now() + timeout;
     loop {
         let left = deadline.saturating_duration_since(Instant::now());
@@ -503,12 +517,7 @@ fn driver(cli: &Cli) -> Result<()> {
 
     let udp = UdpSocket::bind("127.0.0.1:0").context("bind UDP")?;
     let listener = TcpListener::bind("127.0.0.1:0").context("bind TCP")?;
-    let mut child = EchoChild::spawn(
-        cli,
-        &endpoint,
-        udp.local_addr()?,
-        listener.local_addr()?,
-    )?;
+    let mut child = EchoChild::spawn(cli, &endpoint, udp.local_addr()?, listener.local_addr()?)?;
     let ready = child.expect_line("READY ", Duration::from_secs(30))?;
     let echo_udp: SocketAddr = ready
         .trim()
@@ -570,6 +579,13 @@ fn driver(cli: &Cli) -> Result<()> {
         pose_index,
         pose_plan,
     )?;
+    eprintln!("bus_latency: zenoh raw (echo in callback)");
+    let zr = zenoh_raw_case(
+        bus.session(),
+        cli.domain_id,
+        pose_bytes - ATTACHMENT_LEN,
+        pose_plan,
+    )?;
     eprintln!("bus_latency: udp wrist pose");
     let up = udp_case(&udp, pose_bytes, pose_plan)?;
     let images = if settings.no_images {
@@ -612,6 +628,17 @@ fn driver(cli: &Cli) -> Result<()> {
             Some(driver_pose_sub),
         ),
         case_report(
+            "zenoh raw pose",
+            "zenoh",
+            "raw bytes (size of PoseStamped, same attachment); echoed inside the Zenoh callback"
+                .into(),
+            pose_bytes,
+            pose_plan.rate_hz,
+            zr,
+            echo.zenoh_raw,
+            None,
+        ),
+        case_report(
             "udp wrist pose",
             "udp",
             format!("raw bytes (size of PoseStamped + {ATTACHMENT_LEN} B attachment)"),
@@ -649,12 +676,20 @@ fn driver(cli: &Cli) -> Result<()> {
         ));
     }
     let ratio = |a: f64, b: f64| if b > 0.0 { a / b } else { f64::NAN };
-    let (zp, up) = (&cases[0], &cases[1]);
+    let case = |name: &str| cases.iter().find(|c| c.name == name);
+    let (Some(zp), Some(zr), Some(up)) = (
+        case("zenoh wrist pose"),
+        case("zenoh raw pose"),
+        case("udp wrist pose"),
+    ) else {
+        bail!("pose cases missing");
+    };
     let pose_ratio = ratio(zp.rtt_half.p50_us, up.rtt_half.p50_us);
-    let img = cases.get(2).zip(cases.get(3));
+    let img = case("zenoh depth image").zip(case("tcp depth image"));
     let ratios = Ratios {
         pose_zenoh_over_udp_rtt_half_p50: pose_ratio,
         pose_zenoh_over_udp_one_way_p50: ratio(zp.one_way.p50_us, up.one_way.p50_us),
+        pose_zenoh_raw_over_udp_rtt_half_p50: ratio(zr.rtt_half.p50_us, up.rtt_half.p50_us),
         image_zenoh_over_tcp_rtt_half_p50: img
             .map(|(zi, ti)| ratio(zi.rtt_half.p50_us, ti.rtt_half.p50_us)),
         image_zenoh_over_tcp_one_way_p50: img
@@ -740,7 +775,11 @@ fn depth_image(width: u32, height: u32) -> Image {
         for u in 0..width {
             let (du, dv) = (f64::from(u) - cx, f64::from(v) - cy);
             let hand = du * du + dv * dv < (f64::from(height) / 4.0).powi(2);
-            let mm = if hand { 450.0 + 0.05 * du } else { 900.0 + 0.3 * f64::from(v) };
+            let mm = if hand {
+                450.0 + 0.05 * du
+            } else {
+                900.0 + 0.3 * f64::from(v)
+            };
             depth.push(mm as u16);
         }
     }
@@ -811,6 +850,144 @@ fn zenoh_case<T: Message>(
                 out.rtt_half_ns.push(ns(rtt) / 2);
             } else {
                 out.lost += 1;
+            }
+        }
+    }
+    out.pacing = pacer.finish();
+    Ok(out)
+}
+
+/// Keys of the raw Zenoh case (outside the rmw_zenoh key space of the typed topics).
+fn raw_keys(domain_id: u32) -> (String, String) {
+    (
+        format!("{domain_id}/teleop_bench/raw_ping"),
+        format!("{domain_id}/teleop_bench/raw_pong"),
+    )
+}
+
+/// A raw publisher with the control topics' QoS.
+fn raw_publisher(
+    session: &zenoh::Session,
+    key: String,
+) -> Result<zenoh::pubsub::Publisher<'static>> {
+    session
+        .declare_publisher(key)
+        .congestion_control(CongestionControl::Drop)
+        .priority(Priority::RealTime)
+        .express(true)
+        .wait()
+        .map_err(|e| anyhow::anyhow!("declare raw publisher: {e}"))
+}
+
+/// Driver side of the raw case: the echo's arrival is timed inside the callback.
+#[derive(Debug)]
+struct RawState {
+    base: Instant,
+    /// Send time of the current ping, ns since `base`.
+    t0_ns: AtomicI64,
+    /// (index, round trip ns) of the last echo.
+    slot: Mutex<Option<(i64, i64)>>,
+    cv: Condvar,
+}
+
+impl RawState {
+    fn wait(&self, index: i64, timeout: Duration) -> Option<i64> {
+        let deadline = Instant::now() + timeout;
+        let mut slot = self.slot.lock().ok()?;
+        loop {
+            if let Some((i, rtt)) = slot.take()
+                && i == index
+            {
+                return Some(rtt);
+            }
+            let left = deadline.checked_duration_since(Instant::now())?;
+            slot = self.cv.wait_timeout(slot, left).ok()?.0;
+        }
+    }
+}
+
+/// Zenoh without the typed layer: raw bytes of the pose's size with the same attachment,
+/// echoed by the other process inside its subscriber callback, timed by the driver inside
+/// its callback. No application thread wakes up on either side: the transport's floor.
+fn zenoh_raw_case(
+    session: &zenoh::Session,
+    domain_id: u32,
+    size: usize,
+    plan: Plan,
+) -> Result<DriverCase> {
+    let (ping_key, pong_key) = raw_keys(domain_id);
+    let publisher = raw_publisher(session, ping_key)?;
+    let state = Arc::new(RawState {
+        base: Instant::now(),
+        t0_ns: AtomicI64::new(0),
+        slot: Mutex::new(None),
+        cv: Condvar::new(),
+    });
+    let cb = Arc::clone(&state);
+    let _sub = session
+        .declare_subscriber(pong_key)
+        .callback(move |sample: zenoh::sample::Sample| {
+            let rtt = ns(cb.base.elapsed()) - cb.t0_ns.load(Ordering::Acquire);
+            if let Some(index) = raw_index(&sample.payload().to_bytes()) {
+                if let Ok(mut slot) = cb.slot.lock() {
+                    *slot = Some((index, rtt));
+                }
+                cb.cv.notify_all();
+            }
+        })
+        .wait()
+        .map_err(|e| anyhow::anyhow!("declare raw subscriber: {e}"))?;
+    let mut gid = [0_u8; 16];
+    gid[0] = 0xbe;
+    let mut buf = vec![0x5a_u8; size.max(RAW_HEADER)];
+    let mut sequence = 0;
+    let mut send = |index: i64| -> Result<()> {
+        sequence += 1;
+        raw_header(&mut buf, index);
+        let att = Attachment {
+            sequence,
+            source_timestamp_ns: unix_nanos_now(),
+            gid,
+        };
+        if let Ok(mut slot) = state.slot.lock() {
+            *slot = None;
+        }
+        state
+            .t0_ns
+            .store(ns(state.base.elapsed()), Ordering::Release);
+        publisher
+            .put(buf.clone())
+            .attachment(att.to_bytes().to_vec())
+            .wait()
+            .map_err(|e| anyhow::anyhow!("raw put: {e}"))
+    };
+    let start = Instant::now();
+    let mut connected = false;
+    while !connected {
+        if start.elapsed() > Duration::from_secs(20) {
+            bail!("no raw Zenoh echo within 20 s");
+        }
+        send(-1_000_000)?;
+        connected = state.wait(-1_000_000, Duration::from_millis(50)).is_some();
+    }
+    let mut out = DriverCase {
+        rtt_half_ns: Vec::with_capacity(plan.samples),
+        ..Default::default()
+    };
+    let mut pacer = Pacer::new(plan.rate_hz, plan.warmup + plan.samples);
+    for k in 0..plan.warmup + plan.samples {
+        let index = k as i64 - plan.warmup as i64;
+        pacer.wait();
+        send(index)?;
+        let rtt = state.wait(index, plan.timeout);
+        if index >= 0 {
+            out.sent += 1;
+            match rtt {
+                Some(rtt) => {
+                    out.returned += 1;
+                    out.rtt_half_ns.push(rtt / 2);
+                }
+                None => out.lost += 1,
             }
         }
     }
@@ -1004,8 +1181,12 @@ fn print_table(r: &Report) {
         q.pose_goal_max_ratio,
         verdict(q.pose_goal_met)
     );
+    println!(
+        "ratio zenoh raw (callback echo, no teleop-bus layer)/udp wrist pose p50: RTT/2 {:.2}x",
+        q.pose_zenoh_raw_over_udp_rtt_half_p50
+    );
     if let (Some(zi), Some(rtt), Some(one_way), Some(met)) = (
-        r.cases.get(2),
+        r.cases.iter().find(|c| c.name == "zenoh depth image"),
         q.image_zenoh_over_tcp_rtt_half_p50,
         q.image_zenoh_over_tcp_one_way_p50,
         q.image_goal_met,
@@ -1066,7 +1247,12 @@ impl EchoChild {
         let exe = std::env::current_exe().context("locate own executable")?;
         let mut cmd = Command::new(exe);
         cmd.args(["--role", "echo", "--connect", endpoint])
-            .args(["--udp-peer", &udp.to_string(), "--tcp-peer", &tcp.to_string()])
+            .args([
+                "--udp-peer",
+                &udp.to_string(),
+                "--tcp-peer",
+                &tcp.to_string(),
+            ])
             .args(["--domain-id", &cli.domain_id.to_string()]);
         if let Some(p) = &cli.zenoh_config {
             cmd.arg("--zenoh-config").arg(p);
@@ -1173,6 +1359,7 @@ mod echo {
 
         let stop = Arc::new(AtomicBool::new(false));
         let zenoh_pose = zenoh_echo(pose_sub, pose_pub, pose_index, Arc::clone(&stop));
+        let (raw_sub, zenoh_raw) = zenoh_raw_echo(bus.session(), cli.domain_id)?;
         let zenoh_image = zenoh_echo(image_sub, image_pub, image_index, Arc::clone(&stop));
         let udp_pose = udp_echo(udp, Arc::clone(&stop));
         let tcp_image = tcp_echo(tcp);
@@ -1186,6 +1373,13 @@ mod echo {
         let join = |h: JoinHandle<EchoCase>| h.join().unwrap_or_default();
         let report = EchoReport {
             zenoh_pose: join(zenoh_pose),
+            zenoh_raw: {
+                drop(raw_sub);
+                zenoh_raw
+                    .lock()
+                    .map(|mut c| std::mem::take(&mut *c))
+                    .unwrap_or_default()
+            },
             udp_pose: join(udp_pose),
             zenoh_image: join(zenoh_image),
             tcp_image: join(tcp_image),
@@ -1221,6 +1415,42 @@ mod echo {
             out.subscriber = Some(SubStats::of(&sub));
             out
         })
+    }
+
+    /// Echoes raw pings inside the Zenoh callback.
+    fn zenoh_raw_echo(
+        session: &zenoh::Session,
+        domain_id: u32,
+    ) -> Result<(zenoh::pubsub::Subscriber<()>, Arc<Mutex<EchoCase>>)> {
+        let (ping_key, pong_key) = raw_keys(domain_id);
+        let publisher = raw_publisher(session, pong_key)?;
+        let record = Arc::new(Mutex::new(EchoCase::default()));
+        let rec = Arc::clone(&record);
+        let sub = session
+            .declare_subscriber(ping_key)
+            .callback(move |sample: zenoh::sample::Sample| {
+                let now = unix_nanos_now();
+                let mut put = publisher.put(sample.payload().clone());
+                if let Some(att) = sample.attachment() {
+                    put = put.attachment(att.clone());
+                }
+                let ok = put.wait().is_ok();
+                let bytes = sample.payload().to_bytes();
+                let Ok(mut rec) = rec.lock() else { return };
+                if !ok {
+                    rec.errors += 1;
+                }
+                if let (Some(index), Some(ts)) =
+                    (raw_index(&bytes), bytes.get(8..).and_then(raw_index))
+                    && index >= 0
+                {
+                    rec.echoed += 1;
+                    rec.one_way_ns.push(now - ts);
+                }
+            })
+            .wait()
+            .map_err(|e| anyhow::anyhow!("declare raw subscriber: {e}"))?;
+        Ok((sub, record))
     }
 
     fn udp_echo(udp: UdpSocket, stop: Arc<AtomicBool>) -> JoinHandle<EchoCase> {

@@ -1,0 +1,185 @@
+//! RIHS01 type hashes (REP 2011) and DDS type names, as rmw_zenoh puts them in keys.
+#![allow(clippy::unwrap_used)]
+
+use teleop_msgs::{
+    FingertipPressures, Header, Image, JointState, Message, NodeStatus, OperatorInput, Point, Pose,
+    PoseStamped, Quaternion, Time, Transform, TransformStamped, Vector3,
+};
+
+#[test]
+fn computed_hash_equals_declared_hash_for_every_type() {
+    let all = teleop_msgs::all_descriptions();
+    assert_eq!(all.len(), 14);
+    let mut mismatches = Vec::new();
+    for (desc, declared) in &all {
+        let computed = desc.type_hash();
+        if computed != *declared {
+            mismatches.push(format!(
+                "{}: declared {declared}, computed {computed}",
+                desc.type_name
+            ));
+        }
+    }
+    assert!(mismatches.is_empty(), "{mismatches:#?}");
+}
+
+#[test]
+fn all_descriptions_lists_every_type_once() {
+    let mut names: Vec<&str> = teleop_msgs::all_descriptions()
+        .iter()
+        .map(|(d, _)| d.type_name)
+        .collect();
+    names.sort_unstable();
+    let mut expected = vec![
+        Time::TYPE_NAME,
+        Header::TYPE_NAME,
+        Point::TYPE_NAME,
+        Vector3::TYPE_NAME,
+        Quaternion::TYPE_NAME,
+        Pose::TYPE_NAME,
+        PoseStamped::TYPE_NAME,
+        Transform::TYPE_NAME,
+        TransformStamped::TYPE_NAME,
+        JointState::TYPE_NAME,
+        Image::TYPE_NAME,
+        OperatorInput::TYPE_NAME,
+        FingertipPressures::TYPE_NAME,
+        NodeStatus::TYPE_NAME,
+    ];
+    expected.sort_unstable();
+    assert_eq!(names, expected);
+}
+
+fn assert_hash<T: Message>(published: &str) {
+    assert_eq!(T::TYPE_HASH, published, "{} declared", T::TYPE_NAME);
+    assert_eq!(
+        T::description().type_hash(),
+        published,
+        "{} computed",
+        T::TYPE_NAME
+    );
+}
+
+/// Hashes as published by ROS 2 Kilted (`ros2 interface` / rmw_zenoh keys).
+#[test]
+fn published_kilted_hashes() {
+    assert_hash::<JointState>(
+        "RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e",
+    );
+    assert_hash::<PoseStamped>(
+        "RIHS01_10f3786d7d40fd2b54367835614bff85d4ad3b5dab62bf8bca0cc232d73b4cd8",
+    );
+    assert_hash::<TransformStamped>(
+        "RIHS01_0a241f87d04668d94099cbb5ba11691d5ad32c2f29682e4eb5653424bd275206",
+    );
+    assert_hash::<Image>("RIHS01_d31d41a9a4c4bc8eae9be757b0beed306564f7526c88ea6a4588fb9582527d47");
+}
+
+/// Hashes of the nested standard types, as computed independently by rosbags 0.11.9
+/// (`Typestore.hash_rihs01`, ROS 2 Kilted store).
+#[test]
+fn nested_standard_type_hashes() {
+    assert_hash::<Time>("RIHS01_b106235e25a4c5ed35098aa0a61a3ee9c9b18d197f398b0e4206cea9acf9c197");
+    assert_hash::<Header>(
+        "RIHS01_f49fb3ae2cf070f793645ff749683ac6b06203e41c891e17701b1cb597ce6a01",
+    );
+}
+
+/// Project types: same hashes as rosbags computes from `msg/*.msg` (constants, comments
+/// and default values do not enter the hash).
+#[test]
+fn teleop_hashes_are_stable() {
+    assert_hash::<OperatorInput>(
+        "RIHS01_a9311ceb88718e6f27c808f700d1bbad5ec0ccd3f25fb90f555d462d620611ab",
+    );
+    assert_hash::<FingertipPressures>(
+        "RIHS01_6e9f1f372dadcc239ffe9dc82437470396066bcf8e08e0cc6e9e2b98f5f399fc",
+    );
+    assert_hash::<NodeStatus>(
+        "RIHS01_e9ab36cd53de9b842bd28237da566c14b35f9e93152d050477c46abdee6fd004",
+    );
+}
+
+#[test]
+fn hash_format_is_rihs01_with_64_lowercase_hex_digits() {
+    for (desc, _) in teleop_msgs::all_descriptions() {
+        let h = desc.type_hash();
+        let hex = h.strip_prefix("RIHS01_").unwrap();
+        assert_eq!(hex.len(), 64, "{h}");
+        assert!(
+            hex.bytes()
+                .all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b)),
+            "{h}"
+        );
+    }
+}
+
+#[test]
+fn hashable_json_of_time_is_exact() {
+    // The exact text REP 2011 hashes for a type without references.
+    assert_eq!(
+        Time::description().hashable_json(),
+        "{\"type_description\": {\"type_name\": \"builtin_interfaces/msg/Time\", \"fields\": [\
+         {\"name\": \"sec\", \"type\": {\"type_id\": 6, \"capacity\": 0, \"string_capacity\": 0, \"nested_type_name\": \"\"}}, \
+         {\"name\": \"nanosec\", \"type\": {\"type_id\": 7, \"capacity\": 0, \"string_capacity\": 0, \"nested_type_name\": \"\"}}]}, \
+         \"referenced_type_descriptions\": []}"
+    );
+}
+
+#[test]
+fn referenced_types_are_sorted_and_complete() {
+    let names: Vec<&str> = PoseStamped::description()
+        .referenced()
+        .iter()
+        .map(|d| d.type_name)
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "builtin_interfaces/msg/Time",
+            "geometry_msgs/msg/Point",
+            "geometry_msgs/msg/Pose",
+            "geometry_msgs/msg/Quaternion",
+            "std_msgs/msg/Header",
+        ]
+    );
+    assert!(Time::description().referenced().is_empty());
+}
+
+#[test]
+fn dds_type_names() {
+    let cases: [(&str, String); 6] = [
+        (
+            "sensor_msgs::msg::dds_::JointState_",
+            JointState::description().dds_type_name(),
+        ),
+        (
+            "sensor_msgs::msg::dds_::Image_",
+            Image::description().dds_type_name(),
+        ),
+        (
+            "geometry_msgs::msg::dds_::PoseStamped_",
+            PoseStamped::description().dds_type_name(),
+        ),
+        (
+            "builtin_interfaces::msg::dds_::Time_",
+            Time::description().dds_type_name(),
+        ),
+        (
+            "std_msgs::msg::dds_::Header_",
+            Header::description().dds_type_name(),
+        ),
+        (
+            "teleop_msgs::msg::dds_::NodeStatus_",
+            NodeStatus::description().dds_type_name(),
+        ),
+    ];
+    for (expected, got) in cases {
+        assert_eq!(got, expected);
+    }
+    for (desc, _) in teleop_msgs::all_descriptions() {
+        let dds = desc.dds_type_name();
+        let short = desc.type_name.rsplit('/').next().unwrap();
+        assert!(dds.ends_with(&format!("::msg::dds_::{short}_")), "{dds}");
+    }
+}

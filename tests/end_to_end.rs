@@ -1,0 +1,96 @@
+//! The wrist tracker node runs against the simulated operator; a second session checks
+//! what arrives against the simulator's ground truth.
+#![allow(clippy::unwrap_used)]
+
+use std::time::Duration;
+
+use teleop_bus::{Bus, topics};
+use teleop_local_site::devices::SimulatedOperatorConfig;
+use teleop_local_site::wrist_tracker::{self, WristTrackerConfig};
+use teleop_msgs::Lifecycle;
+use teleop_system_tests::{free_port, isolated_pair};
+
+/// Distance from `p` to the boundary of the axis-aligned square of side `side` centred
+/// at `c` in the plane z = c.z.
+fn distance_to_square(p: [f64; 3], c: [f64; 3], side: f64) -> f64 {
+    let h = side / 2.0;
+    let (dx, dy, dz) = (p[0] - c[0], p[1] - c[1], p[2] - c[2]);
+    // Distance to each edge segment.
+    let seg = |x: f64, y: f64, horizontal: bool, fixed: f64| -> f64 {
+        if horizontal {
+            let cx = x.clamp(-h, h);
+            ((x - cx).powi(2) + (y - fixed).powi(2)).sqrt()
+        } else {
+            let cy = y.clamp(-h, h);
+            ((x - fixed).powi(2) + (y - cy).powi(2)).sqrt()
+        }
+    };
+    let d = seg(dx, dy, true, -h)
+        .min(seg(dx, dy, true, h))
+        .min(seg(dx, dy, false, -h))
+        .min(seg(dx, dy, false, h));
+    (d * d + dz * dz).sqrt()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn wrist_tracker_publishes_ground_truth_poses_inputs_and_status() {
+    let (node_bus, probe_bus) = isolated_pair(21, free_port().unwrap());
+    let operator = SimulatedOperatorConfig {
+        clutch_delay_s: 1.5,
+        ..Default::default()
+    };
+    let cfg = WristTrackerConfig {
+        bus: node_bus,
+        status_rate_hz: 5.0,
+        operator: operator.clone(),
+        ..Default::default()
+    };
+    let probe = Bus::open("probe", &probe_bus).await.unwrap();
+    let poses = probe.subscriber(&topics::WRIST_POSE).await.unwrap();
+    let inputs = probe.subscriber(&topics::OPERATOR_INPUT).await.unwrap();
+    let status = probe.subscriber(&topics::NODE_STATUS).await.unwrap();
+    let node = tokio::spawn(wrist_tracker::run(cfg, Some(Duration::from_secs(3))));
+
+    let mut n_poses = 0;
+    let mut max_dev: f64 = 0.0;
+    let mut clutch_seen = [false, false];
+    let mut active_status = None;
+    let until = tokio::time::Instant::now() + Duration::from_secs(4);
+    while tokio::time::Instant::now() < until {
+        if let Some(p) = poses.recv_timeout(Duration::from_millis(20)).await {
+            let pos = p.msg.pose.position;
+            let q = p.msg.pose.orientation;
+            let norm = (q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w).sqrt();
+            assert!((norm - 1.0).abs() < 1e-9);
+            max_dev = max_dev.max(distance_to_square(
+                [pos.x, pos.y, pos.z],
+                operator.center_m,
+                operator.side_m,
+            ));
+            n_poses += 1;
+        }
+        while let Some(i) = inputs.try_recv() {
+            assert!(i.msg.enable);
+            clutch_seen[usize::from(i.msg.clutch)] = true;
+        }
+        while let Some(s) = status.try_recv() {
+            if s.msg.lifecycle() == Some(Lifecycle::Active) {
+                active_status = Some(s.msg);
+            }
+        }
+    }
+    let counters = node.await.unwrap().unwrap();
+    assert!(n_poses > 100, "only {n_poses} poses arrived");
+    // The tracker's noise is 0.2 mm (sigma): every pose lies on the true square.
+    assert!(
+        max_dev < 0.002,
+        "pose {max_dev} m off the operator's true path"
+    );
+    assert_eq!(clutch_seen, [true, true], "clutch released then pressed");
+    let s = active_status.expect("an active status report");
+    assert_eq!(s.node_name, "wrist_tracker");
+    assert!(s.counter("wrist_pose.published").unwrap() > 0);
+    assert_eq!(s.counter("wrist_pose.rejected_non_finite"), Some(0));
+    assert!(counters.poses_published >= n_poses);
+    assert_eq!(poses.stats().rejected(), 0);
+}
