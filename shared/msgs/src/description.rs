@@ -283,24 +283,35 @@ pub fn check_wire(desc: &'static MsgDescription, bytes: &[u8]) -> Result<(), Wir
         data: &bytes[4..],
         pos: 0,
         little,
+        path: Vec::with_capacity(8),
     };
-    w.message(desc, desc.type_name)
+    w.path.push(desc.type_name);
+    w.message(desc)
 }
 
+/// Schema-guided cursor over a CDR payload. `path` is the stack of field names being
+/// visited; it is joined into a text only when an error is reported, so the happy path
+/// does not allocate per field.
 struct Walker<'a> {
     data: &'a [u8],
     pos: usize,
     little: bool,
+    path: Vec<&'static str>,
 }
 
 impl Walker<'_> {
-    fn take(&mut self, field: &str, align: usize, n: u64) -> Result<usize, WireError> {
+    /// Dotted name of the field being visited, e.g. `sensor_msgs/msg/JointState.name`.
+    fn field(&self) -> String {
+        self.path.join(".")
+    }
+
+    fn take(&mut self, align: usize, n: u64) -> Result<usize, WireError> {
         let pad = (align - self.pos % align) % align;
         let available = self.data.len().saturating_sub(self.pos);
         let needed = n + pad as u64;
         if needed > available as u64 {
             return Err(WireError::Truncated {
-                field: field.to_owned(),
+                field: self.field(),
                 offset: self.pos + 4,
                 needed,
                 available,
@@ -312,8 +323,8 @@ impl Walker<'_> {
         Ok(start)
     }
 
-    fn u32(&mut self, field: &str) -> Result<u32, WireError> {
-        let at = self.take(field, 4, 4)?;
+    fn u32(&mut self) -> Result<u32, WireError> {
+        let at = self.take(4, 4)?;
         let raw = [
             self.data[at],
             self.data[at + 1],
@@ -327,26 +338,27 @@ impl Walker<'_> {
         })
     }
 
-    fn message(&mut self, desc: &'static MsgDescription, path: &str) -> Result<(), WireError> {
+    fn message(&mut self, desc: &'static MsgDescription) -> Result<(), WireError> {
         for f in desc.fields {
-            let name = format!("{path}.{}", f.name);
+            self.path.push(f.name);
             match f.arity {
-                Arity::Single => self.element(f.base, &name)?,
-                Arity::Array(n) => self.elements(f.base, &name, n)?,
+                Arity::Single => self.element(f.base)?,
+                Arity::Array(n) => self.elements(f.base, n)?,
                 Arity::Sequence => {
-                    let n = self.u32(&name)?;
-                    self.elements(f.base, &name, n)?;
+                    let n = self.u32()?;
+                    self.elements(f.base, n)?;
                 }
             }
+            self.path.pop();
         }
         Ok(())
     }
 
-    fn elements(&mut self, base: BaseType, name: &str, n: u32) -> Result<(), WireError> {
+    fn elements(&mut self, base: BaseType, n: u32) -> Result<(), WireError> {
         match base.primitive_size() {
             Some(size) if !matches!(base, BaseType::Bool) => {
                 if n > 0 {
-                    self.take(name, size, u64::from(n) * size as u64)?;
+                    self.take(size, u64::from(n) * size as u64)?;
                 }
                 Ok(())
             }
@@ -354,27 +366,27 @@ impl Walker<'_> {
                 // Strings, booleans and nested messages each take at least one byte, so
                 // this loop ends within `data.len()` iterations whatever `n` claims.
                 for _ in 0..n {
-                    self.element(base, name)?;
+                    self.element(base)?;
                 }
                 Ok(())
             }
         }
     }
 
-    fn element(&mut self, base: BaseType, name: &str) -> Result<(), WireError> {
+    fn element(&mut self, base: BaseType) -> Result<(), WireError> {
         match base {
-            BaseType::Nested(get) => self.message(get(), name),
+            BaseType::Nested(get) => self.message(get()),
             BaseType::String => {
                 // Length includes the terminating NUL. A length of 0 (no terminator at
                 // all) decodes as "" and is accepted; anything longer must end in NUL.
-                let len = self.u32(name)?;
-                let at = self.take(name, 1, u64::from(len))?;
+                let len = self.u32()?;
+                let at = self.take(1, u64::from(len))?;
                 if len > 0 {
                     // `take` succeeded, so `at + len <= data.len()` and the cast is exact.
                     let last = at + len as usize - 1;
                     if self.data[last] != 0 {
                         return Err(WireError::UnterminatedString {
-                            field: name.to_owned(),
+                            field: self.field(),
                             offset: last + 4,
                         });
                     }
@@ -382,18 +394,18 @@ impl Walker<'_> {
                 Ok(())
             }
             BaseType::Bool => {
-                let at = self.take(name, 1, 1)?;
+                let at = self.take(1, 1)?;
                 match self.data[at] {
                     0 | 1 => Ok(()),
                     value => Err(WireError::BadBool {
-                        field: name.to_owned(),
+                        field: self.field(),
                         value,
                     }),
                 }
             }
             other => {
                 let size = other.primitive_size().unwrap_or(1);
-                self.take(name, size, size as u64).map(|_| ())
+                self.take(size, size as u64).map(|_| ())
             }
         }
     }
