@@ -1,0 +1,15 @@
+#![doc = include_str!("../README.md")]
+
+pub mod chain;
+pub mod error;
+pub mod fk;
+pub mod model;
+pub mod robots;
+
+pub use chain::{Chain, ChainJoint, FixedChain};
+pub use error::KinematicsError;
+pub use fk::KinematicState;
+pub use model::{
+    CollisionShape, Inertial, Joint, JointId, JointKind, JointLimits, Link, LinkId, Robot, Shape,
+};
+pub use nalgebra;
