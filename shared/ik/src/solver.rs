@@ -213,6 +213,10 @@ pub struct IkSettings {
     pub initial_damping: f64,
     /// Finite-difference step for minimum-distance goals, radians.
     pub distance_fd_step: f64,
+    /// Cold mode: after this many iterations of an attempt, an iteration that keeps
+    /// more than `slow_progress_ratio` of the cost abandons the attempt (restart).
+    pub patience_iterations: u32,
+    pub slow_progress_ratio: f64,
 }
 
 impl Default for IkSettings {
@@ -224,6 +228,8 @@ impl Default for IkSettings {
             cold_iterations: 60,
             initial_damping: 1e-3,
             distance_fd_step: 1e-6,
+            patience_iterations: 4,
+            slow_progress_ratio: 0.8,
         }
     }
 }
@@ -362,6 +368,7 @@ impl<const N: usize> Solver<N> {
             goals,
             self.clamp(q_start),
             self.settings.tracking_iterations,
+            false,
         );
         let sol = self.solution(goals, q, iterations, 0);
         if ok {
@@ -405,7 +412,7 @@ impl<const N: usize> Solver<N> {
                     q
                 }
             };
-            let (q, iterations, ok) = self.lm(goals, q0, self.settings.cold_iterations);
+            let (q, iterations, ok) = self.lm(goals, q0, self.settings.cold_iterations, true);
             total_iterations += iterations;
             if ok {
                 return Ok(self.solution(goals, q, total_iterations, attempt));
@@ -482,6 +489,7 @@ impl<const N: usize> Solver<N> {
         goals: &[Goal<N>],
         mut q: SVector<f64, N>,
         max_iterations: u32,
+        abandon_slow: bool,
     ) -> (SVector<f64, N>, u32, bool) {
         let mut cur = self.evaluate(goals, &q, true);
         let mut lambda = self.settings.initial_damping;
@@ -505,6 +513,14 @@ impl<const N: usize> Solver<N> {
                 let q_new = self.clamp(&(q + step));
                 let next = self.evaluate(goals, &q_new, true);
                 if next.cost < cur.cost {
+                    // Near a solution LM converges fast; slow progress after a few
+                    // iterations means a local minimum or a limit: better to restart.
+                    if abandon_slow
+                        && it > self.settings.patience_iterations
+                        && next.cost > self.settings.slow_progress_ratio * cur.cost
+                    {
+                        return (q_new, it, next.satisfied);
+                    }
                     q = q_new;
                     cur = next;
                     lambda = (lambda * 0.3).max(1e-12);

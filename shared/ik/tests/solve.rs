@@ -1,5 +1,6 @@
 //! Success rates and accuracy on random reachable targets, every goal kind, limits,
 //! determinism and failure reporting.
+#![allow(clippy::unwrap_used)]
 
 use std::sync::Arc;
 
