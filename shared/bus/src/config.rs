@@ -217,6 +217,11 @@ impl ZenohSettings {
             "scouting/multicast/interface",
             json_string(&self.multicast_interface),
         )?;
+        // Depth images are ~600 KB, i.e. ~10 Zenoh fragments: a deeper queue for their
+        // priority and a 1 MiB receive buffer halve their latency on loopback
+        // (docs/benchmarks.md, bus section). Memory cost: up to 1 MiB per link.
+        set("transport/link/tx/queue/size/data_low", "16".into())?;
+        set("transport/link/rx/buffer_size", "1048576".into())?;
         Ok(cfg)
     }
 }

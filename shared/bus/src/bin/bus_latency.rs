@@ -9,11 +9,15 @@
 //!
 //! 1. `zenoh wrist pose`: `PoseStamped` pings on [`topics::WRIST_POSE`], echoed on a bench
 //!    topic with the same QoS (control: express, real-time priority, drop, depth 1).
-//! 2. `udp wrist pose`: raw UDP datagrams of the same size as (1) on the wire
+//! 2. `zenoh raw pose`: diagnostic floor of the transport: the same bytes and attachment
+//!    through bare Zenoh publishers (same QoS) on keys outside the rmw_zenoh key space,
+//!    echoed inside the echo process's Zenoh callback and timed inside the driver's: no
+//!    typed layer, no application thread.
+//! 3. `udp wrist pose`: raw UDP datagrams of the same size as (1) on the wire
 //!    (CDR-encoded `PoseStamped` + the 33-byte rmw_zenoh attachment).
-//! 3. `zenoh depth image`: 640x480 `16UC1` `Image` pings on [`topics::HAND_DEPTH`], echoed on
+//! 4. `zenoh depth image`: 640x480 `16UC1` `Image` pings on [`topics::HAND_DEPTH`], echoed on
 //!    a bench topic with the same QoS (image: data-low priority, drop, depth 1).
-//! 4. `tcp depth image`: the same number of bytes, length-prefixed, over a raw
+//! 5. `tcp depth image`: the same number of bytes, length-prefixed, over a raw
 //!    `TcpStream` (`TCP_NODELAY`). UDP cannot carry a 614 KB datagram (64 KB limit), so
 //!    TCP is the raw baseline for images.
 //!
@@ -23,8 +27,9 @@
 //! * `RTT/2`: round trip measured by the driver on the monotonic clock, halved.
 //! * `one-way`: measured by the echo process as its wall clock when `recv` returns minus
 //!   the source timestamp the driver put in the sample (attachment for Zenoh, first bytes
-//!   for raw sockets) -- both processes read the same clock. For Zenoh also `callback`:
-//!   the bus's own receive timestamp (taken in the Zenoh callback, before decoding).
+//!   for raw sockets) -- both processes read the same clock. The raw Zenoh case takes it
+//!   inside the callback. The typed Zenoh cases also report `callback` (`cb`): the bus's
+//!   own receive timestamp, taken in the Zenoh callback before decoding.
 //!
 //! Pacing: ticks at absolute deadlines `start + k * period`; the driver sleeps until
 //! ~100 us before a deadline, then spins on `Instant::now()`. A tick whose deadline has

@@ -210,8 +210,8 @@ fn main() -> anyhow::Result<()> {
         RobotArg::Pr2 => {
             // Right arm reach around the shoulder at (~0, -0.19, ~0.74+torso).
             let grid = grid_for(
-                Vector3::new(-0.4, -1.2, 0.0),
-                Vector3::new(1.2, 0.6, 1.6),
+                Vector3::new(-0.8, -1.3, 0.0),
+                Vector3::new(1.2, 0.7, 1.8),
                 cli.resolution_m,
             );
             let solver = Solver::new(robots::pr2_arm_chain()?, settings);
