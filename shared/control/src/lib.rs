@@ -1,0 +1,19 @@
+#![doc = include_str!("../README.md")]
+#![warn(missing_docs)]
+
+pub mod error;
+pub mod filters;
+
+pub use error::{Axis, ConfigError, Rejection, RejectionCounts, RejectionKind};
+pub use filters::{
+    CartesianLimiter, CartesianLimits, InterventionCounts, JointLimiterConfig, JointLimits,
+    JointVelocityLimiter, JumpFilter, JumpFilterConfig, UR5_MAX_JOINT_VELOCITY_RAD_S,
+    VelocityLimitStrategy, Watchdog, WatchdogConfig, WatchdogEvent, WatchdogState,
+};
+pub use nalgebra;
+
+/// Largest accepted deviation of a rotation quaternion's norm from 1. Rotations are
+/// `UnitQuaternion`s, but one built with `new_unchecked` (e.g. straight from a wire
+/// message) may not be unit; every filter rejects it rather than compute with a
+/// scaled rotation. 1e-6 passes any quaternion normalized in `f32` or `f64`.
+pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-6;
