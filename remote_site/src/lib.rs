@@ -1,0 +1,4 @@
+//! Robot-site nodes and their hardware interfaces.
+
+pub mod arm_controller;
+pub mod hardware;

@@ -1,0 +1,293 @@
+//! The arm controller's clutch semantics and every watchdog path, on an ideal velocity
+//! plant (the joints move exactly as commanded).
+#![allow(clippy::unwrap_used)]
+
+use nalgebra::{Isometry3, SVector, Translation3, UnitQuaternion, Vector3};
+use teleop_kinematics::robots;
+use teleop_remote_site::arm_controller::{
+    ArmController, ArmControllerConfig, ArmInputs, OperatorSample, StopReason, WristSample,
+};
+use teleop_remote_site::hardware::ArmState;
+
+const DT: f64 = 1.0 / 30.0;
+
+fn q_start() -> SVector<f64, 7> {
+    SVector::from_column_slice(&[-0.5, 0.3, -1.0, -1.4, 0.3, -0.1, 0.1])
+}
+
+struct Rig {
+    ctrl: ArmController,
+    q: SVector<f64, 7>,
+    t: f64,
+    clutch: bool,
+    enable: bool,
+    scale: f64,
+    alive: bool,
+    wrist: Isometry3<f64>,
+    send_wrist: bool,
+    last_wrist: Option<WristSample>,
+}
+
+impl Rig {
+    fn new() -> Self {
+        let ctrl = ArmController::new(
+            robots::pr2_arm_chain().unwrap(),
+            ArmControllerConfig::default(),
+        )
+        .unwrap();
+        Self {
+            ctrl,
+            q: q_start(),
+            t: 0.0,
+            clutch: false,
+            enable: true,
+            scale: 1.0,
+            alive: true,
+            wrist: Isometry3::from_parts(
+                Translation3::new(0.4, -0.2, 1.0),
+                UnitQuaternion::from_euler_angles(0.1, 0.2, 0.3),
+            ),
+            send_wrist: true,
+            last_wrist: None,
+        }
+    }
+
+    fn palm(&self) -> Isometry3<f64> {
+        self.ctrl.chain().end_pose(&self.q)
+    }
+
+    /// One control period: inputs arrive, the controller steps, the ideal arm moves.
+    fn step(&mut self) -> teleop_remote_site::arm_controller::ArmStep {
+        self.t += DT;
+        if self.send_wrist {
+            self.last_wrist = Some(WristSample {
+                received_s: self.t,
+                pose: self.wrist,
+            });
+        }
+        let inputs = ArmInputs {
+            operator: Some(OperatorSample {
+                received_s: self.t,
+                clutch: self.clutch,
+                enable: self.enable,
+                motion_scale: self.scale,
+            }),
+            wrist: self.last_wrist,
+            operator_site_alive: self.alive,
+        };
+        let state = ArmState {
+            time_s: self.t,
+            position_rad: self.q,
+            velocity_rad_s: SVector::zeros(),
+        };
+        let out = self.ctrl.step(self.t, &inputs, &state);
+        self.q += out.command.velocity_rad_s * DT;
+        out
+    }
+
+    fn moving(&mut self) -> bool {
+        let out = self.step();
+        out.command.velocity_rad_s.norm() > 0.0
+    }
+}
+
+#[test]
+fn arm_moves_only_with_clutch_and_enable() {
+    let mut r = Rig::new();
+    for _ in 0..10 {
+        r.wrist.translation.vector.x += 0.005;
+        let out = r.step();
+        assert_eq!(out.command.velocity_rad_s, SVector::<f64, 7>::zeros());
+        assert_eq!(out.stopped, Some(StopReason::ClutchReleased));
+    }
+    r.clutch = true;
+    r.enable = false;
+    r.wrist.translation.vector.x += 0.005;
+    assert_eq!(r.step().stopped, Some(StopReason::EnableReleased));
+}
+
+#[test]
+fn relative_motion_is_copied_scaled_in_the_robot_wrist_frame() {
+    let mut r = Rig::new();
+    r.clutch = true;
+    r.scale = 1.0 / 3.0;
+    r.step(); // engage
+    let robot_ref = r.palm();
+    let human_ref = r.wrist;
+    // The operator moves 9 cm along its own wrist x axis, and turns 20 deg about z.
+    for k in 1..=60 {
+        let f = f64::from(k) / 60.0;
+        r.wrist = human_ref
+            * Isometry3::from_parts(
+                Translation3::new(0.09 * f, 0.0, 0.0),
+                UnitQuaternion::from_euler_angles(0.0, 0.0, 20f64.to_radians() * f),
+            );
+        r.step();
+    }
+    for _ in 0..90 {
+        r.step();
+    }
+    let expected = robot_ref
+        * Isometry3::from_parts(
+            Translation3::new(0.03, 0.0, 0.0),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, 20f64.to_radians()),
+        );
+    let got = r.palm();
+    let dp = (got.translation.vector - expected.translation.vector).norm();
+    let da = (got.rotation * expected.rotation.inverse())
+        .angle()
+        .to_degrees();
+    assert!(dp < 0.002, "position error {dp} m");
+    assert!(da < 0.5, "orientation error {da} deg");
+}
+
+#[test]
+fn releasing_the_clutch_stops_at_once_and_reengaging_recentres() {
+    let mut r = Rig::new();
+    r.clutch = true;
+    r.step();
+    for _ in 0..15 {
+        r.wrist.translation.vector.y += 0.004;
+        assert!(r.moving() || r.ctrl.is_engaged());
+    }
+    r.clutch = false;
+    let out = r.step();
+    assert_eq!(out.command.velocity_rad_s, SVector::<f64, 7>::zeros());
+    assert!(!r.ctrl.is_engaged());
+    // The operator re-centres with the clutch released: the robot does not move.
+    let palm = r.palm();
+    for _ in 0..20 {
+        r.wrist.translation.vector.y -= 0.01;
+        r.step();
+    }
+    assert_eq!(r.palm(), palm);
+    // Re-engaging starts from the new poses: no jump toward the old reference.
+    r.clutch = true;
+    let out = r.step();
+    assert!(r.ctrl.is_engaged());
+    assert!(
+        out.command.velocity_rad_s.norm() < 1e-6,
+        "{}",
+        out.command.velocity_rad_s.norm()
+    );
+}
+
+/// Engages and moves for a while, so the arm is moving when the fault happens.
+fn engaged_and_moving() -> Rig {
+    let mut r = Rig::new();
+    r.clutch = true;
+    r.step();
+    for _ in 0..10 {
+        r.wrist.translation.vector.z += 0.004;
+        r.step();
+    }
+    assert!(r.ctrl.is_engaged());
+    r
+}
+
+#[test]
+fn stale_wrist_pose_stops_within_one_period_after_the_deadline() {
+    let mut r = engaged_and_moving();
+    r.send_wrist = false;
+    // 100 ms deadline at 30 Hz: steps at +33, +67, +100 ms may still move; +133 ms stops.
+    let mut stopped_at = None;
+    for k in 1..=6 {
+        let out = r.step();
+        if out.stopped.is_some() {
+            assert_eq!(out.stopped, Some(StopReason::StaleWristPose));
+            assert_eq!(out.command.velocity_rad_s, SVector::<f64, 7>::zeros());
+            stopped_at = Some(k);
+            break;
+        }
+    }
+    let k = stopped_at.expect("arm never stopped");
+    assert!(
+        f64::from(k) * DT <= 0.1 + DT + 1e-9,
+        "stopped after {k} periods"
+    );
+    // Poses come back, but a safety stop needs a fresh clutch press.
+    r.send_wrist = true;
+    for _ in 0..5 {
+        assert_eq!(r.step().stopped, Some(StopReason::AwaitingClutchRelease));
+    }
+    r.clutch = false;
+    r.step();
+    r.clutch = true;
+    r.step();
+    assert!(r.ctrl.is_engaged());
+}
+
+#[test]
+fn enable_released_and_site_lost_stop_in_the_same_period() {
+    let mut r = engaged_and_moving();
+    r.enable = false;
+    let out = r.step();
+    assert_eq!(out.stopped, Some(StopReason::EnableReleased));
+    assert_eq!(out.command.velocity_rad_s, SVector::<f64, 7>::zeros());
+
+    let mut r = engaged_and_moving();
+    r.alive = false;
+    let out = r.step();
+    assert_eq!(out.stopped, Some(StopReason::OperatorSiteLost));
+    assert_eq!(out.command.velocity_rad_s, SVector::<f64, 7>::zeros());
+    // Site back, clutch still held: stays stopped until a fresh press.
+    r.alive = true;
+    assert_eq!(r.step().stopped, Some(StopReason::AwaitingClutchRelease));
+}
+
+#[test]
+fn nan_and_jumping_poses_are_rejected_and_counted() {
+    let mut r = engaged_and_moving();
+    let palm = r.palm();
+    // A NaN pose, then a 60 cm jump: neither moves the target; the deadline then stops.
+    r.wrist.translation.vector.x = f64::NAN;
+    r.step();
+    r.wrist.translation.vector.x = 10.0;
+    r.step();
+    let mut stopped = false;
+    for _ in 0..5 {
+        if r.step().stopped == Some(StopReason::StaleWristPose) {
+            stopped = true;
+            break;
+        }
+    }
+    assert!(stopped, "rejected poses must not keep the arm alive");
+    let names = r.ctrl.named_counters();
+    let get = |n: &str| names.iter().find(|(k, _)| k == n).map(|(_, v)| *v).unwrap();
+    assert!(get("wrist_pose.rejected_by_controller") >= 3);
+    assert!(get("wrist_pose.rejected_non_finite") >= 1);
+    assert!(get("wrist_pose.rejected_position_jump") >= 1);
+    // The arm drifted at most what the limiter allowed before the rejections.
+    assert!((r.palm().translation.vector - palm.translation.vector).norm() < 0.05);
+}
+
+#[test]
+fn invalid_motion_scale_and_arm_state_stop() {
+    let mut r = engaged_and_moving();
+    r.scale = f64::NAN;
+    let out = r.step();
+    assert_eq!(out.stopped, Some(StopReason::InvalidMotionScale));
+    let mut r = engaged_and_moving();
+    r.scale = 3.0;
+    assert_eq!(r.step().stopped, Some(StopReason::InvalidMotionScale));
+    let mut r = engaged_and_moving();
+    r.q[3] = f64::NAN;
+    let out = r.step();
+    assert_eq!(out.stopped, Some(StopReason::InvalidArmState));
+    assert_eq!(out.command.velocity_rad_s, SVector::<f64, 7>::zeros());
+}
+
+#[test]
+fn commands_respect_joint_velocity_limits_on_large_motions() {
+    let mut r = Rig::new();
+    r.clutch = true;
+    r.step();
+    let limits = r.ctrl.chain().velocity_limits();
+    for _ in 0..60 {
+        r.wrist.translation.vector += Vector3::new(0.01, -0.01, 0.01);
+        let out = r.step();
+        for i in 0..7 {
+            assert!(out.command.velocity_rad_s[i].abs() <= limits[i] + 1e-9);
+        }
+    }
+}
