@@ -2,3 +2,4 @@
 
 pub mod arm_controller;
 pub mod hardware;
+pub mod wire;

@@ -272,6 +272,53 @@ pub const NODE_STATUS: Topic<NodeStatus> = Topic::new(
     "Lifecycle state, rejected-input counters and last error of each node",
 );
 
+/// Simulated PR2 arm: measured joint state (the simulator stands in for the arm's
+/// driver; a real driver publishes the same).
+pub const SIM_ARM_STATE: Topic<JointState> = Topic::new(
+    "teleop/hw/pr2_arm/state",
+    RemoteInternal,
+    250.0,
+    Q::State,
+    Some(100),
+    "Arm hardware state: 7 joints (5 PR2 arm + 2 Shadow wrist), position and velocity",
+);
+/// Joint velocity command to the arm hardware.
+pub const SIM_ARM_COMMAND: Topic<JointState> = Topic::new(
+    "teleop/hw/pr2_arm/command",
+    RemoteInternal,
+    30.0,
+    Q::Control,
+    Some(100),
+    "Arm hardware command: 7 joint velocities (rad/s); the hardware stops on its own if commands stop",
+);
+/// Hand hardware state.
+pub const SIM_HAND_STATE: Topic<JointState> = Topic::new(
+    "teleop/hw/shadow_hand/state",
+    RemoteInternal,
+    250.0,
+    Q::State,
+    Some(100),
+    "Hand hardware state: 17 finger joints, position, velocity and effort",
+);
+/// Hand hardware tactile readings.
+pub const SIM_HAND_TACTILE: Topic<FingertipPressures> = Topic::new(
+    "teleop/hw/shadow_hand/tactile",
+    RemoteInternal,
+    250.0,
+    Q::State,
+    Some(100),
+    "Hand hardware fingertip sensors (N)",
+);
+/// Hand hardware command.
+pub const SIM_HAND_COMMAND: Topic<JointState> = Topic::new(
+    "teleop/hw/shadow_hand/command",
+    RemoteInternal,
+    100.0,
+    Q::Control,
+    Some(100),
+    "Hand hardware command: 17 finger joints, either `effort` (N m) or `position` (rad)",
+);
+
 /// Every topic of the system.
 pub const ALL: &[TopicSpec] = &[
     WRIST_POSE.spec,
@@ -285,6 +332,11 @@ pub const ALL: &[TopicSpec] = &[
     HAND_DEPTH.spec,
     UR5_JOINT_STATES.spec,
     NODE_STATUS.spec,
+    SIM_ARM_STATE.spec,
+    SIM_ARM_COMMAND.spec,
+    SIM_HAND_STATE.spec,
+    SIM_HAND_TACTILE.spec,
+    SIM_HAND_COMMAND.spec,
 ];
 
 /// Looks a topic up by name (leading/trailing slashes ignored).
@@ -345,9 +397,16 @@ mod tests {
     }
 
     #[test]
-    fn every_control_topic_crosses_local_to_remote() {
+    fn every_control_topic_crosses_local_to_remote_or_stays_on_the_robot_site() {
         for t in ALL.iter().filter(|t| t.qos == QosClass::Control) {
-            assert_eq!(t.direction, Direction::LocalToRemote, "{}", t.name);
+            assert!(
+                matches!(
+                    t.direction,
+                    Direction::LocalToRemote | Direction::RemoteInternal
+                ),
+                "{}",
+                t.name
+            );
         }
     }
 }
