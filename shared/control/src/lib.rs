@@ -3,12 +3,17 @@
 
 pub mod error;
 pub mod filters;
+pub mod hand;
 
 pub use error::{Axis, ConfigError, Rejection, RejectionCounts, RejectionKind};
 pub use filters::{
     CartesianLimiter, CartesianLimits, InterventionCounts, JointLimiterConfig, JointLimits,
     JointVelocityLimiter, JumpFilter, JumpFilterConfig, UR5_MAX_JOINT_VELOCITY_RAD_S,
     VelocityLimitStrategy, Watchdog, WatchdogConfig, WatchdogEvent, WatchdogState,
+};
+pub use hand::{
+    AdaptiveImpedance, CompliantProfiles, HandController, HandControllerConfig, HandMode,
+    HandOutput, JointInput, PerJoint, ShadowHandController,
 };
 pub use nalgebra;
 
