@@ -7,6 +7,8 @@ use std::path::Path;
 use teleop_bus::NodeConfig;
 use teleop_bus::config::{load_toml, parse_toml};
 use teleop_local_site::wrist_tracker::WristTrackerConfig;
+use teleop_remote_site::arm_node::ArmNodeConfig;
+use teleop_remote_site::sim_node::SimNodeConfig;
 use teleop_system_tests::repo_root;
 
 fn check<C: NodeConfig>(path: &Path) {
@@ -20,6 +22,8 @@ fn check<C: NodeConfig>(path: &Path) {
 fn checker(stem: &str) -> Option<fn(&Path)> {
     match stem {
         "wrist_tracker" => Some(check::<WristTrackerConfig>),
+        "pr2_arm_controller" => Some(check::<ArmNodeConfig>),
+        "remote_sim" => Some(check::<SimNodeConfig>),
         _ => None,
     }
 }
@@ -50,6 +54,12 @@ fn shipped_defaults_equal_built_in_defaults() {
     let path = repo_root().join("deploy/config/wrist_tracker.toml");
     let shipped: WristTrackerConfig = load_toml(&path).unwrap();
     assert_eq!(shipped, WristTrackerConfig::default());
+    let path = repo_root().join("deploy/config/pr2_arm_controller.toml");
+    let shipped: ArmNodeConfig = load_toml(&path).unwrap();
+    assert_eq!(shipped, ArmNodeConfig::default());
+    let path = repo_root().join("deploy/config/remote_sim.toml");
+    let shipped: SimNodeConfig = load_toml(&path).unwrap();
+    assert_eq!(shipped, SimNodeConfig::default());
 }
 
 #[test]

@@ -94,3 +94,64 @@ async fn wrist_tracker_publishes_ground_truth_poses_inputs_and_status() {
     assert!(counters.poses_published >= n_poses);
     assert_eq!(poses.stats().rejected(), 0);
 }
+
+/// The operator site's wrist tracker, the robot site's simulator and the PR2 arm
+/// controller, each on its own Zenoh session: the arm holds still until the clutch is
+/// pressed, then follows the operator.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn wrist_tracker_drives_the_simulated_pr2_arm_through_the_clutch() {
+    use teleop_remote_site::arm_node::{self, ArmNodeConfig};
+    use teleop_remote_site::sim_node::{self, SimNodeConfig};
+    use teleop_remote_site::wire;
+
+    let port = free_port().unwrap();
+    let (hub, spoke) = isolated_pair(22, port);
+    let sim = SimNodeConfig {
+        bus: hub,
+        ..Default::default()
+    };
+    let arm = ArmNodeConfig {
+        bus: spoke.clone(),
+        ..Default::default()
+    };
+    let tracker = WristTrackerConfig {
+        bus: spoke.clone(),
+        operator: SimulatedOperatorConfig {
+            clutch_delay_s: 2.5,
+            speed_m_s: 0.05,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let sim_task = tokio::spawn(sim_node::run(sim, Some(Duration::from_secs(8))));
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let probe = Bus::open("probe", &spoke).await.unwrap();
+    let states = probe.subscriber(&topics::SIM_ARM_STATE).await.unwrap();
+    let arm_task = tokio::spawn(arm_node::run(arm, Some(Duration::from_secs(7))));
+    let tracker_task = tokio::spawn(wrist_tracker::run(tracker, Some(Duration::from_secs(7))));
+
+    let read = |r: teleop_bus::Received<teleop_msgs::JointState>| {
+        wire::arm_state(&r.msg).unwrap().position_rad
+    };
+    // Before the clutch (t < 2.5 s): the arm does not move.
+    tokio::time::sleep(Duration::from_millis(1000)).await;
+    let a = read(states.recv_timeout(Duration::from_secs(2)).await.unwrap());
+    tokio::time::sleep(Duration::from_millis(1000)).await;
+    let b = read(states.recv_timeout(Duration::from_secs(2)).await.unwrap());
+    assert!(
+        (b - a).amax() < 1e-6,
+        "arm moved without the clutch: {}",
+        (b - a).amax()
+    );
+    // Clutch pressed from 2.5 s: the arm follows the operator's square.
+    tokio::time::sleep(Duration::from_millis(3000)).await;
+    let c = read(states.recv_timeout(Duration::from_secs(2)).await.unwrap());
+    assert!(
+        (c - b).amax() > 1e-3,
+        "arm did not follow: {}",
+        (c - b).amax()
+    );
+    arm_task.await.unwrap().unwrap();
+    tracker_task.await.unwrap().unwrap();
+    sim_task.await.unwrap().unwrap();
+}

@@ -20,7 +20,8 @@ pub fn free_port() -> std::io::Result<u16> {
 }
 
 /// Two bus configurations in a private domain: the first listens on `port`, the second
-/// connects to it; no multicast scouting, so parallel tests cannot see each other.
+/// connects to it (several nodes may share the second); no multicast scouting, so
+/// parallel tests cannot see each other.
 pub fn isolated_pair(domain_id: u32, port: u16) -> (BusConfig, BusConfig) {
     let listen = BusConfig {
         domain_id,
@@ -34,7 +35,9 @@ pub fn isolated_pair(domain_id: u32, port: u16) -> (BusConfig, BusConfig) {
     let connect = BusConfig {
         domain_id,
         zenoh: ZenohSettings {
-            listen: vec![],
+            // Listening too lets the connecting nodes reach each other directly once
+            // gossip tells them about one another.
+            listen: vec!["tcp/127.0.0.1:0".into()],
             connect: vec![format!("tcp/127.0.0.1:{port}")],
             multicast_scouting: false,
             ..Default::default()

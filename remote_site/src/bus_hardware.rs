@@ -1,0 +1,136 @@
+//! Hardware clients over the bus: the arm and the hand as a driver process (the
+//! simulator today, a real driver later) exposes them on the `teleop/hw/...` topics.
+//! They implement the same [`ArmHardware`] / [`HandHardware`] traits as in-process
+//! backends, so the controllers cannot tell where the hardware is.
+
+use teleop_bus::{Bus, BusError, Publisher, Subscriber, topics};
+use teleop_msgs::{FingertipPressures, JointState, unix_nanos_now};
+
+use crate::hardware::{
+    ArmCommand, ArmHardware, ArmState, HandCommand, HandHardware, HandState, HardwareError,
+};
+use crate::wire;
+
+fn now_s() -> f64 {
+    unix_nanos_now() as f64 * 1e-9
+}
+
+/// The arm hardware reached over the bus.
+#[derive(Debug)]
+pub struct BusArm {
+    state: Subscriber<JointState>,
+    command: Publisher<JointState>,
+    latest: Option<(ArmState, f64)>,
+    stale_after_s: f64,
+    bad_states: u64,
+}
+
+impl BusArm {
+    /// # Errors
+    /// [`BusError`] if the subscriptions cannot be declared.
+    pub async fn new(bus: &Bus, stale_after_s: f64) -> Result<Self, BusError> {
+        Ok(Self {
+            state: bus.subscriber(&topics::SIM_ARM_STATE).await?,
+            command: bus.publisher(&topics::SIM_ARM_COMMAND).await?,
+            latest: None,
+            stale_after_s,
+            bad_states: 0,
+        })
+    }
+
+    /// State messages that failed to convert (missing joints, NaN).
+    pub fn bad_states(&self) -> u64 {
+        self.bad_states
+    }
+}
+
+impl ArmHardware for BusArm {
+    fn read(&mut self) -> Result<ArmState, HardwareError> {
+        while let Some(r) = self.state.try_recv() {
+            match wire::arm_state(&r.msg) {
+                Ok(s) => self.latest = Some((s, r.receive_timestamp_ns as f64 * 1e-9)),
+                Err(e) => {
+                    self.bad_states += 1;
+                    tracing::warn!("arm state refused: {e}");
+                }
+            }
+        }
+        let (state, at) = self
+            .latest
+            .ok_or_else(|| HardwareError::NotConnected("no arm state received yet".into()))?;
+        let age_s = now_s() - at;
+        if age_s > self.stale_after_s {
+            return Err(HardwareError::StaleState { age_s });
+        }
+        Ok(state)
+    }
+
+    fn write(&mut self, command: &ArmCommand) -> Result<(), HardwareError> {
+        self.command
+            .put(&wire::arm_command_msg(command, now_s()))
+            .map_err(|e| HardwareError::Fault(e.to_string()))
+    }
+}
+
+/// The hand hardware reached over the bus.
+#[derive(Debug)]
+pub struct BusHand {
+    state: Subscriber<JointState>,
+    tactile: Subscriber<FingertipPressures>,
+    command: Publisher<JointState>,
+    latest: Option<(HandState, f64)>,
+    latest_tactile: Option<FingertipPressures>,
+    stale_after_s: f64,
+    bad_states: u64,
+}
+
+impl BusHand {
+    /// # Errors
+    /// [`BusError`] if the subscriptions cannot be declared.
+    pub async fn new(bus: &Bus, stale_after_s: f64) -> Result<Self, BusError> {
+        Ok(Self {
+            state: bus.subscriber(&topics::SIM_HAND_STATE).await?,
+            tactile: bus.subscriber(&topics::SIM_HAND_TACTILE).await?,
+            command: bus.publisher(&topics::SIM_HAND_COMMAND).await?,
+            latest: None,
+            latest_tactile: None,
+            stale_after_s,
+            bad_states: 0,
+        })
+    }
+
+    pub fn bad_states(&self) -> u64 {
+        self.bad_states
+    }
+}
+
+impl HandHardware for BusHand {
+    fn read(&mut self) -> Result<HandState, HardwareError> {
+        while let Some(t) = self.tactile.try_recv() {
+            self.latest_tactile = Some(t.msg);
+        }
+        while let Some(r) = self.state.try_recv() {
+            match wire::hand_state(&r.msg, self.latest_tactile.as_ref()) {
+                Ok(s) => self.latest = Some((s, r.receive_timestamp_ns as f64 * 1e-9)),
+                Err(e) => {
+                    self.bad_states += 1;
+                    tracing::warn!("hand state refused: {e}");
+                }
+            }
+        }
+        let (state, at) = self
+            .latest
+            .ok_or_else(|| HardwareError::NotConnected("no hand state received yet".into()))?;
+        let age_s = now_s() - at;
+        if age_s > self.stale_after_s {
+            return Err(HardwareError::StaleState { age_s });
+        }
+        Ok(state)
+    }
+
+    fn write(&mut self, command: &HandCommand) -> Result<(), HardwareError> {
+        self.command
+            .put(&wire::hand_command_msg(command, now_s()))
+            .map_err(|e| HardwareError::Fault(e.to_string()))
+    }
+}

@@ -1,0 +1,162 @@
+//! The simulated PR2 arm (+ Shadow wrist): 7 velocity-commanded joints, kinematic (no
+//! dynamics: the PR2's joint velocity loops are stiff against the hand's weight).
+//!
+//! Per step `dt`, for each joint:
+//! 1. first-order lag towards the commanded velocity, exactly discretised:
+//!    `dv = (v_cmd - v) (1 - exp(-dt / tau))`; once the command is older than
+//!    `command_timeout_s`, instead the driver's own safety brake: `dv = -v`;
+//! 2. `|dv| <= a_max dt` (acceleration limit; the brake is thus a constant-deceleration
+//!    ramp to a full stop), then `|v| <= v_max` (URDF velocity limit);
+//! 3. `q += v dt`; a joint that would pass a position limit stops at the limit with
+//!    zero velocity (continuous joints have no limit).
+
+use nalgebra::SVector;
+
+use super::config::ArmSimConfig;
+
+/// Limits of one arm joint.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ArmJointLimits {
+    /// Lowest position, rad (`-inf` for continuous joints).
+    pub lower_rad: f64,
+    /// Highest position, rad (`+inf` for continuous joints).
+    pub upper_rad: f64,
+    /// Largest speed, rad/s.
+    pub velocity_rad_s: f64,
+    /// Largest acceleration, rad/s^2.
+    pub acceleration_rad_s2: f64,
+}
+
+/// State and response model of the arm.
+#[derive(Debug, Clone)]
+pub struct ArmSim {
+    limits: [ArmJointLimits; 7],
+    lag_s: f64,
+    timeout_s: f64,
+    position_rad: SVector<f64, 7>,
+    velocity_rad_s: SVector<f64, 7>,
+    command_rad_s: SVector<f64, 7>,
+    /// Sim time of the last command; `None` before the first one (the arm holds still).
+    command_time_s: Option<f64>,
+}
+
+impl ArmSim {
+    /// An arm at rest at `config.initial_position_rad` (clamped into the limits).
+    pub fn new(config: &ArmSimConfig, limits: [ArmJointLimits; 7]) -> Self {
+        let position_rad = SVector::<f64, 7>::from_fn(|i, _| {
+            config.initial_position_rad[i].clamp(limits[i].lower_rad, limits[i].upper_rad)
+        });
+        Self {
+            limits,
+            lag_s: config.velocity_lag_s,
+            timeout_s: config.command_timeout_s,
+            position_rad,
+            velocity_rad_s: SVector::zeros(),
+            command_rad_s: SVector::zeros(),
+            command_time_s: None,
+        }
+    }
+
+    /// Stores a velocity command received at sim time `time_s`.
+    pub fn command(&mut self, velocity_rad_s: &SVector<f64, 7>, time_s: f64) {
+        self.command_rad_s = *velocity_rad_s;
+        self.command_time_s = Some(time_s);
+    }
+
+    /// True while the last command is fresh (at sim time `time_s`).
+    pub fn command_active(&self, time_s: f64) -> bool {
+        self.command_time_s
+            .is_some_and(|t| time_s - t <= self.timeout_s)
+    }
+
+    /// Advances by `dt_s`; `time_s` is the sim time at the start of the step.
+    pub fn step(&mut self, time_s: f64, dt_s: f64) {
+        let active = self.command_active(time_s);
+        let blend = if self.lag_s > 0.0 {
+            1.0 - (-dt_s / self.lag_s).exp()
+        } else {
+            1.0
+        };
+        for i in 0..7 {
+            let lim = &self.limits[i];
+            let v = self.velocity_rad_s[i];
+            let max_dv = lim.acceleration_rad_s2 * dt_s;
+            let dv = if active {
+                ((self.command_rad_s[i] - v) * blend).clamp(-max_dv, max_dv)
+            } else {
+                // Safety brake: constant deceleration to a full stop.
+                (-v).clamp(-max_dv, max_dv)
+            };
+            let v = (v + dv).clamp(-lim.velocity_rad_s, lim.velocity_rad_s);
+            let q = self.position_rad[i] + v * dt_s;
+            let (q, v) = if q > lim.upper_rad {
+                (lim.upper_rad, 0.0)
+            } else if q < lim.lower_rad {
+                (lim.lower_rad, 0.0)
+            } else {
+                (q, v)
+            };
+            self.position_rad[i] = q;
+            self.velocity_rad_s[i] = v;
+        }
+    }
+
+    /// Joint positions, rad.
+    pub fn position_rad(&self) -> &SVector<f64, 7> {
+        &self.position_rad
+    }
+
+    /// Joint velocities, rad/s.
+    pub fn velocity_rad_s(&self) -> &SVector<f64, 7> {
+        &self.velocity_rad_s
+    }
+
+    /// The joint limits in use.
+    pub fn limits(&self) -> &[ArmJointLimits; 7] {
+        &self.limits
+    }
+
+    /// Places the arm (clamped into its limits) at rest; for scenario setup.
+    pub fn set_position(&mut self, position_rad: &SVector<f64, 7>) {
+        for i in 0..7 {
+            self.position_rad[i] =
+                position_rad[i].clamp(self.limits[i].lower_rad, self.limits[i].upper_rad);
+        }
+        self.velocity_rad_s = SVector::zeros();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn limits() -> [ArmJointLimits; 7] {
+        [ArmJointLimits {
+            lower_rad: -1.0,
+            upper_rad: 1.0,
+            velocity_rad_s: 2.0,
+            acceleration_rad_s2: 8.0,
+        }; 7]
+    }
+
+    #[test]
+    fn no_command_no_motion() {
+        let mut arm = ArmSim::new(&ArmSimConfig::default(), limits());
+        for k in 0..100 {
+            arm.step(f64::from(k) * 0.001, 0.001);
+        }
+        assert_eq!(arm.position_rad(), &SVector::<f64, 7>::zeros());
+    }
+
+    #[test]
+    fn stops_at_position_limit() {
+        let mut arm = ArmSim::new(&ArmSimConfig::default(), limits());
+        for k in 0..2000 {
+            let t = f64::from(k) * 0.001;
+            arm.command(&SVector::repeat(1.0), t);
+            arm.step(t, 0.001);
+        }
+        assert_eq!(arm.position_rad()[0], 1.0);
+        assert_eq!(arm.velocity_rad_s()[0], 0.0);
+    }
+}
