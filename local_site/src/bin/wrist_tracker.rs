@@ -1,6 +1,4 @@
 //! Operator-site wrist tracker node (simulated operator today).
-use std::time::Duration;
-
 use anyhow::Context;
 use clap::Parser;
 use teleop_bus::NodeArgs;
@@ -12,9 +10,6 @@ use teleop_local_site::wrist_tracker::{self, WristTrackerConfig};
 struct Cli {
     #[command(flatten)]
     node: NodeArgs,
-    /// Stop after this many seconds (default: run until Ctrl-C).
-    #[arg(long)]
-    duration_s: Option<f64>,
 }
 
 #[tokio::main]
@@ -28,11 +23,7 @@ async fn main() -> anyhow::Result<()> {
     else {
         return Ok(());
     };
-    let duration = match cli.duration_s {
-        Some(s) if s.is_finite() && s > 0.0 => Some(Duration::from_secs_f64(s)),
-        Some(s) => anyhow::bail!("--duration-s must be a positive number of seconds, got {s}"),
-        None => None,
-    };
+    let duration = cli.node.duration()?;
     let counters = wrist_tracker::run(cfg, duration).await?;
     tracing::info!(?counters, "wrist tracker stopped");
     Ok(())

@@ -1,6 +1,4 @@
 //! Robot-site node: PR2 arm relative control (clutch, IK, velocity law, watchdog).
-use std::time::Duration;
-
 use anyhow::Context;
 use clap::Parser;
 use teleop_bus::NodeArgs;
@@ -12,9 +10,6 @@ use teleop_remote_site::arm_node::{self, ArmNodeConfig};
 struct Cli {
     #[command(flatten)]
     node: NodeArgs,
-    /// Stop after this many seconds (default: run until Ctrl-C).
-    #[arg(long)]
-    duration_s: Option<f64>,
 }
 
 #[tokio::main]
@@ -28,10 +23,6 @@ async fn main() -> anyhow::Result<()> {
     else {
         return Ok(());
     };
-    let duration = match cli.duration_s {
-        Some(s) if s.is_finite() && s > 0.0 => Some(Duration::from_secs_f64(s)),
-        Some(s) => anyhow::bail!("--duration-s must be a positive number of seconds, got {s}"),
-        None => None,
-    };
+    let duration = cli.node.duration()?;
     arm_node::run(cfg, duration).await
 }

@@ -1,7 +1,4 @@
-//! Robot-site simulator: the PR2 arm, the Shadow hand and the task objects, offered to
-//! the controllers over the hardware topics.
-use std::time::Duration;
-
+//! Robot-site simulator: the PR2 arm, the Shadow hand and the task objects, offered to the controllers over the hardware topics.
 use anyhow::Context;
 use clap::Parser;
 use teleop_bus::NodeArgs;
@@ -13,9 +10,6 @@ use teleop_remote_site::sim_node::{self, SimNodeConfig};
 struct Cli {
     #[command(flatten)]
     node: NodeArgs,
-    /// Stop after this many seconds (default: run until Ctrl-C).
-    #[arg(long)]
-    duration_s: Option<f64>,
 }
 
 #[tokio::main]
@@ -29,10 +23,6 @@ async fn main() -> anyhow::Result<()> {
     else {
         return Ok(());
     };
-    let duration = match cli.duration_s {
-        Some(s) if s.is_finite() && s > 0.0 => Some(Duration::from_secs_f64(s)),
-        Some(s) => anyhow::bail!("--duration-s must be a positive number of seconds, got {s}"),
-        None => None,
-    };
+    let duration = cli.node.duration()?;
     sim_node::run(cfg, duration).await
 }

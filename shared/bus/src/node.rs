@@ -35,9 +35,26 @@ pub struct NodeArgs {
     pub show_default_config: bool,
     #[command(flatten)]
     pub zenoh: ZenohArgs,
+    /// Stop after this many seconds (default: run until Ctrl-C).
+    #[arg(long)]
+    pub duration_s: Option<f64>,
 }
 
 impl NodeArgs {
+    /// The `--duration-s` limit, if any.
+    ///
+    /// # Errors
+    /// [`ConfigError::Invalid`] for a value that is not a positive number of seconds.
+    pub fn duration(&self) -> Result<Option<std::time::Duration>, ConfigError> {
+        match self.duration_s {
+            None => Ok(None),
+            Some(s) if s.is_finite() && s > 0.0 => Ok(Some(std::time::Duration::from_secs_f64(s))),
+            Some(s) => Err(ConfigError::Invalid(format!(
+                "--duration-s must be a positive number of seconds, got {s}"
+            ))),
+        }
+    }
+
     /// Loads the configuration (defaults when no file is given), applies the
     /// command-line overrides and validates. Returns `None` after printing the default
     /// configuration for `--show-default-config`.
