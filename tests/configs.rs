@@ -8,6 +8,7 @@ use teleop_bus::NodeConfig;
 use teleop_bus::config::{load_toml, parse_toml};
 use teleop_local_site::wrist_tracker::WristTrackerConfig;
 use teleop_remote_site::arm_node::ArmNodeConfig;
+use teleop_remote_site::feedback_node::FeedbackConfig;
 use teleop_remote_site::sim_node::SimNodeConfig;
 use teleop_system_tests::repo_root;
 
@@ -24,6 +25,7 @@ fn checker(stem: &str) -> Option<fn(&Path)> {
         "wrist_tracker" => Some(check::<WristTrackerConfig>),
         "pr2_arm_controller" => Some(check::<ArmNodeConfig>),
         "remote_sim" => Some(check::<SimNodeConfig>),
+        "feedback_publisher" => Some(check::<FeedbackConfig>),
         _ => None,
     }
 }
@@ -60,6 +62,9 @@ fn shipped_defaults_equal_built_in_defaults() {
     let path = repo_root().join("deploy/config/remote_sim.toml");
     let shipped: SimNodeConfig = load_toml(&path).unwrap();
     assert_eq!(shipped, SimNodeConfig::default());
+    let path = repo_root().join("deploy/config/feedback_publisher.toml");
+    let shipped: FeedbackConfig = load_toml(&path).unwrap();
+    assert_eq!(shipped, FeedbackConfig::default());
 }
 
 #[test]

@@ -101,6 +101,7 @@ async fn wrist_tracker_publishes_ground_truth_poses_inputs_and_status() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn wrist_tracker_drives_the_simulated_pr2_arm_through_the_clutch() {
     use teleop_remote_site::arm_node::{self, ArmNodeConfig};
+    use teleop_remote_site::feedback_node::{self, FeedbackConfig};
     use teleop_remote_site::sim_node::{self, SimNodeConfig};
     use teleop_remote_site::wire;
 
@@ -123,10 +124,20 @@ async fn wrist_tracker_drives_the_simulated_pr2_arm_through_the_clutch() {
         },
         ..Default::default()
     };
+    let feedback = FeedbackConfig {
+        bus: spoke.clone(),
+        ..Default::default()
+    };
     let sim_task = tokio::spawn(sim_node::run(sim, Some(Duration::from_secs(8))));
+    let feedback_task = tokio::spawn(feedback_node::run(feedback, Some(Duration::from_secs(7))));
     tokio::time::sleep(Duration::from_millis(300)).await;
     let probe = Bus::open("probe", &spoke).await.unwrap();
     let states = probe.subscriber(&topics::SIM_ARM_STATE).await.unwrap();
+    let to_operator = probe.subscriber(&topics::PR2_JOINT_STATES).await.unwrap();
+    let pressures = probe
+        .subscriber(&topics::FINGERTIP_PRESSURES)
+        .await
+        .unwrap();
     let arm_task = tokio::spawn(arm_node::run(arm, Some(Duration::from_secs(7))));
     let tracker_task = tokio::spawn(wrist_tracker::run(tracker, Some(Duration::from_secs(7))));
 
@@ -151,7 +162,23 @@ async fn wrist_tracker_drives_the_simulated_pr2_arm_through_the_clutch() {
         "arm did not follow: {}",
         (c - b).amax()
     );
+    // The feedback publisher forwards the arm's state and the fingertip pressures.
+    let fed = to_operator
+        .recv_timeout(Duration::from_secs(2))
+        .await
+        .unwrap();
+    let fed = wire::arm_state(&fed.msg).unwrap().position_rad;
+    assert!(
+        (fed - c).amax() < 0.05,
+        "forwarded state far from the hardware's"
+    );
+    let p = pressures
+        .recv_timeout(Duration::from_secs(2))
+        .await
+        .unwrap();
+    assert!(p.msg.values().iter().all(|v| v.is_finite() && *v >= 0.0));
     arm_task.await.unwrap().unwrap();
+    feedback_task.await.unwrap().unwrap();
     tracker_task.await.unwrap().unwrap();
     sim_task.await.unwrap().unwrap();
 }

@@ -19,7 +19,8 @@ fn now_s() -> f64 {
 #[derive(Debug)]
 pub struct BusArm {
     state: Subscriber<JointState>,
-    command: Publisher<JointState>,
+    /// `None` for a read-only handle (monitoring: it never commands the arm).
+    command: Option<Publisher<JointState>>,
     latest: Option<(ArmState, f64)>,
     stale_after_s: f64,
     bad_states: u64,
@@ -31,7 +32,21 @@ impl BusArm {
     pub async fn new(bus: &Bus, stale_after_s: f64) -> Result<Self, BusError> {
         Ok(Self {
             state: bus.subscriber(&topics::SIM_ARM_STATE).await?,
-            command: bus.publisher(&topics::SIM_ARM_COMMAND).await?,
+            command: Some(bus.publisher(&topics::SIM_ARM_COMMAND).await?),
+            latest: None,
+            stale_after_s,
+            bad_states: 0,
+        })
+    }
+
+    /// A read-only handle: reads the state, refuses to write.
+    ///
+    /// # Errors
+    /// [`BusError`] if the subscription cannot be declared.
+    pub async fn monitor(bus: &Bus, stale_after_s: f64) -> Result<Self, BusError> {
+        Ok(Self {
+            state: bus.subscriber(&topics::SIM_ARM_STATE).await?,
+            command: None,
             latest: None,
             stale_after_s,
             bad_states: 0,
@@ -66,7 +81,11 @@ impl ArmHardware for BusArm {
     }
 
     fn write(&mut self, command: &ArmCommand) -> Result<(), HardwareError> {
-        self.command
+        let publisher = self
+            .command
+            .as_ref()
+            .ok_or_else(|| HardwareError::NotConnected("read-only arm handle".into()))?;
+        publisher
             .put(&wire::arm_command_msg(command, now_s()))
             .map_err(|e| HardwareError::Fault(e.to_string()))
     }
@@ -77,7 +96,8 @@ impl ArmHardware for BusArm {
 pub struct BusHand {
     state: Subscriber<JointState>,
     tactile: Subscriber<FingertipPressures>,
-    command: Publisher<JointState>,
+    /// `None` for a read-only handle.
+    command: Option<Publisher<JointState>>,
     latest: Option<(HandState, f64)>,
     latest_tactile: Option<FingertipPressures>,
     stale_after_s: f64,
@@ -91,7 +111,23 @@ impl BusHand {
         Ok(Self {
             state: bus.subscriber(&topics::SIM_HAND_STATE).await?,
             tactile: bus.subscriber(&topics::SIM_HAND_TACTILE).await?,
-            command: bus.publisher(&topics::SIM_HAND_COMMAND).await?,
+            command: Some(bus.publisher(&topics::SIM_HAND_COMMAND).await?),
+            latest: None,
+            latest_tactile: None,
+            stale_after_s,
+            bad_states: 0,
+        })
+    }
+
+    /// A read-only handle: reads the state, refuses to write.
+    ///
+    /// # Errors
+    /// [`BusError`] if the subscriptions cannot be declared.
+    pub async fn monitor(bus: &Bus, stale_after_s: f64) -> Result<Self, BusError> {
+        Ok(Self {
+            state: bus.subscriber(&topics::SIM_HAND_STATE).await?,
+            tactile: bus.subscriber(&topics::SIM_HAND_TACTILE).await?,
+            command: None,
             latest: None,
             latest_tactile: None,
             stale_after_s,
@@ -129,7 +165,11 @@ impl HandHardware for BusHand {
     }
 
     fn write(&mut self, command: &HandCommand) -> Result<(), HardwareError> {
-        self.command
+        let publisher = self
+            .command
+            .as_ref()
+            .ok_or_else(|| HardwareError::NotConnected("read-only hand handle".into()))?;
+        publisher
             .put(&wire::hand_command_msg(command, now_s()))
             .map_err(|e| HardwareError::Fault(e.to_string()))
     }

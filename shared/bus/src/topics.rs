@@ -210,7 +210,7 @@ pub const PR2_JOINT_STATES: Topic<JointState> = Topic::new(
     100.0,
     Q::State,
     Some(500),
-    "PR2 right arm joint positions/velocities (5 arm joints)",
+    "PR2 arm chain joint positions/velocities (5 PR2 arm joints + 2 Shadow wrist joints)",
 );
 /// Shadow hand joint states.
 pub const SHADOW_JOINT_STATES: Topic<JointState> = Topic::new(
@@ -219,7 +219,7 @@ pub const SHADOW_JOINT_STATES: Topic<JointState> = Topic::new(
     100.0,
     Q::State,
     Some(500),
-    "Shadow hand joint positions/velocities/efforts (24 joints incl. wrist)",
+    "Shadow hand finger joint positions/velocities/efforts (17 joints; J1s fixed by the BioTacs)",
 );
 /// Fingertip pressures.
 pub const FINGERTIP_PRESSURES: Topic<FingertipPressures> = Topic::new(

@@ -11,7 +11,12 @@ use tokio::process::{Child, Command};
 
 /// The node binaries of the system, in start order. Each runs with its default
 /// configuration unless a config directory is given.
-pub const NODES: &[&str] = &["remote_sim", "pr2_arm_controller", "wrist_tracker"];
+pub const NODES: &[&str] = &[
+    "remote_sim",
+    "pr2_arm_controller",
+    "feedback_publisher",
+    "wrist_tracker",
+];
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct LaunchArgs {

@@ -1,0 +1,124 @@
+//! The feedback publisher: what the operator site sees of the robot site. Reads the
+//! arm and hand hardware (read-only handles: it never commands them) and publishes the
+//! joint states of both robots and the five fingertip pressures, rate-limited, plus its
+//! status.
+
+use std::time::Duration;
+
+use serde::{Deserialize, Serialize};
+use teleop_bus::{Bus, BusConfig, NodeConfig, StatusReporter, topics};
+use teleop_msgs::Lifecycle;
+use tokio::time::MissedTickBehavior;
+
+use crate::bus_hardware::{BusArm, BusHand};
+use crate::hardware::{ArmHardware, HandHardware};
+use crate::wire;
+
+/// Configuration of the `feedback_publisher` node.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FeedbackConfig {
+    pub node_name: String,
+    /// Rate of the joint states and pressures sent to the operator site, Hz.
+    pub rate_hz: f64,
+    /// Hardware state older than this is not forwarded, s.
+    pub hardware_timeout_s: f64,
+    pub bus: BusConfig,
+}
+
+impl Default for FeedbackConfig {
+    fn default() -> Self {
+        Self {
+            node_name: "feedback_publisher".into(),
+            rate_hz: topics::PR2_JOINT_STATES.spec.rate_hz,
+            hardware_timeout_s: 0.1,
+            bus: BusConfig::default(),
+        }
+    }
+}
+
+impl NodeConfig for FeedbackConfig {
+    fn bus_mut(&mut self) -> &mut BusConfig {
+        &mut self.bus
+    }
+    fn validate(&self) -> Result<(), String> {
+        if !(self.rate_hz.is_finite() && self.rate_hz > 0.0 && self.rate_hz <= 1000.0) {
+            return Err(format!(
+                "rate_hz must be in (0, 1000], got {}",
+                self.rate_hz
+            ));
+        }
+        if !(self.hardware_timeout_s.is_finite() && self.hardware_timeout_s > 0.0) {
+            return Err(format!(
+                "hardware_timeout_s must be positive, got {}",
+                self.hardware_timeout_s
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Runs the node until `duration` elapses (forever if `None`) or Ctrl-C.
+///
+/// # Errors
+/// Bus errors.
+pub async fn run(cfg: FeedbackConfig, duration: Option<Duration>) -> anyhow::Result<()> {
+    let bus = Bus::open(&cfg.node_name, &cfg.bus).await?;
+    let mut arm = BusArm::monitor(&bus, cfg.hardware_timeout_s).await?;
+    let mut hand = BusHand::monitor(&bus, cfg.hardware_timeout_s).await?;
+    let arm_pub = bus.publisher(&topics::PR2_JOINT_STATES).await?;
+    let hand_pub = bus.publisher(&topics::SHADOW_JOINT_STATES).await?;
+    let pressure_pub = bus.publisher(&topics::FINGERTIP_PRESSURES).await?;
+    let status = StatusReporter::new(&bus).await?;
+    let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / cfg.rate_hz));
+    tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
+    let mut status_tick = tokio::time::interval(Duration::from_secs(1));
+    let stop = async {
+        match duration {
+            Some(d) => tokio::time::sleep(d).await,
+            None => {
+                let _ = tokio::signal::ctrl_c().await;
+            }
+        }
+    };
+    tokio::pin!(stop);
+    let (mut arm_sent, mut hand_sent, mut missing) = (0u64, 0u64, 0u64);
+    let mut last_error = String::new();
+    loop {
+        tokio::select! {
+            _ = &mut stop => break,
+            _ = status_tick.tick() => {
+                let counters = vec![
+                    ("feedback.arm_states".to_owned(), arm_sent),
+                    ("feedback.hand_states".to_owned(), hand_sent),
+                    ("feedback.hardware_missing".to_owned(), missing),
+                ];
+                let _ = status.report(Lifecycle::Active, &counters, &last_error);
+            }
+            _ = tick.tick() => {
+                match arm.read() {
+                    Ok(s) => match arm_pub.put(&wire::arm_state_msg(&s)) {
+                        Ok(()) => arm_sent += 1,
+                        Err(e) => last_error = e.to_string(),
+                    },
+                    Err(e) => { missing += 1; last_error = e.to_string(); }
+                }
+                match hand.read() {
+                    Ok(s) => {
+                        match hand_pub.put(&wire::hand_state_msg(&s)) {
+                            Ok(()) => hand_sent += 1,
+                            Err(e) => last_error = e.to_string(),
+                        }
+                        if let Err(e) = pressure_pub.put(&wire::tactile_msg(&s)) {
+                            last_error = e.to_string();
+                        }
+                    }
+                    Err(e) => { missing += 1; last_error = e.to_string(); }
+                }
+            }
+        }
+    }
+    drop((arm, hand, arm_pub, hand_pub, pressure_pub, status));
+    bus.close().await?;
+    Ok(())
+}
