@@ -130,14 +130,7 @@ pub async fn run(
         t.set_missed_tick_behavior(MissedTickBehavior::Skip);
     }
     let start = tokio::time::Instant::now();
-    let stop = async {
-        match duration {
-            Some(d) => tokio::time::sleep(d).await,
-            None => {
-                let _ = tokio::signal::ctrl_c().await;
-            }
-        }
-    };
+    let stop = teleop_bus::node::stop_signal(duration);
     tokio::pin!(stop);
     let mut counters = TrackerCounters::default();
     let mut last_error = String::new();

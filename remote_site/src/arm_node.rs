@@ -90,14 +90,7 @@ pub async fn run(cfg: ArmNodeConfig, duration: Option<Duration>) -> anyhow::Resu
     let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / cfg.arm.rate_hz));
     tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let mut status_tick = tokio::time::interval(Duration::from_secs(1));
-    let stop = async {
-        match duration {
-            Some(d) => tokio::time::sleep(d).await,
-            None => {
-                let _ = tokio::signal::ctrl_c().await;
-            }
-        }
-    };
+    let stop = teleop_bus::node::stop_signal(duration);
     tokio::pin!(stop);
     let mut wrist: Option<WristSample> = None;
     let mut operator: Option<OperatorSample> = None;

@@ -73,14 +73,7 @@ pub async fn run(cfg: FeedbackConfig, duration: Option<Duration>) -> anyhow::Res
     let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / cfg.rate_hz));
     tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let mut status_tick = tokio::time::interval(Duration::from_secs(1));
-    let stop = async {
-        match duration {
-            Some(d) => tokio::time::sleep(d).await,
-            None => {
-                let _ = tokio::signal::ctrl_c().await;
-            }
-        }
-    };
+    let stop = teleop_bus::node::stop_signal(duration);
     tokio::pin!(stop);
     let (mut arm_sent, mut hand_sent, mut missing) = (0u64, 0u64, 0u64);
     let mut last_error = String::new();

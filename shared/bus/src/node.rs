@@ -114,3 +114,14 @@ impl StatusReporter {
         self.publisher.put(&msg)
     }
 }
+
+/// Completes after `duration`, or on Ctrl-C when `duration` is `None`: the stop
+/// condition of every node's run loop.
+pub async fn stop_signal(duration: Option<std::time::Duration>) {
+    match duration {
+        Some(d) => tokio::time::sleep(d).await,
+        None => {
+            let _ = tokio::signal::ctrl_c().await;
+        }
+    }
+}
