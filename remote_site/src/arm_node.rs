@@ -6,7 +6,7 @@ use std::time::Duration;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 use teleop_bus::{Bus, BusConfig, NodeConfig, StatusReporter, topics};
-use teleop_msgs::{Lifecycle, Pose, unix_nanos_now};
+use teleop_msgs::{Lifecycle, Pose, unix_seconds_now as now_s};
 use tokio::time::MissedTickBehavior;
 
 use crate::arm_controller::{
@@ -68,10 +68,6 @@ pub fn isometry(p: &Pose) -> Isometry3<f64> {
     )
 }
 
-fn now_s() -> f64 {
-    unix_nanos_now() as f64 * 1e-9
-}
-
 /// Runs the node until `duration` elapses (forever if `None`) or Ctrl-C.
 ///
 /// # Errors
@@ -111,11 +107,11 @@ pub async fn run(cfg: ArmNodeConfig, duration: Option<Duration>) -> anyhow::Resu
             }
             _ = tick.tick() => {
                 while let Some(r) = wrist_sub.try_recv() {
-                    wrist = Some(WristSample { received_s: r.receive_timestamp_ns as f64 * 1e-9, pose: isometry(&r.msg.pose) });
+                    wrist = Some(WristSample { received_s: r.receive_time_s(), pose: isometry(&r.msg.pose) });
                 }
                 while let Some(r) = input_sub.try_recv() {
                     operator = Some(OperatorSample {
-                        received_s: r.receive_timestamp_ns as f64 * 1e-9,
+                        received_s: r.receive_time_s(),
                         clutch: r.msg.clutch,
                         enable: r.msg.enable,
                         motion_scale: r.msg.motion_scale,

@@ -4,16 +4,12 @@
 //! backends, so the controllers cannot tell where the hardware is.
 
 use teleop_bus::{Bus, BusError, Publisher, Subscriber, topics};
-use teleop_msgs::{FingertipPressures, JointState, unix_nanos_now};
+use teleop_msgs::{FingertipPressures, JointState, unix_seconds_now as now_s};
 
 use crate::hardware::{
     ArmCommand, ArmHardware, ArmState, HandCommand, HandHardware, HandState, HardwareError,
 };
 use crate::wire;
-
-fn now_s() -> f64 {
-    unix_nanos_now() as f64 * 1e-9
-}
 
 /// The arm hardware reached over the bus.
 #[derive(Debug)]
@@ -30,13 +26,9 @@ impl BusArm {
     /// # Errors
     /// [`BusError`] if the subscriptions cannot be declared.
     pub async fn new(bus: &Bus, stale_after_s: f64) -> Result<Self, BusError> {
-        Ok(Self {
-            state: bus.subscriber(&topics::SIM_ARM_STATE).await?,
-            command: Some(bus.publisher(&topics::SIM_ARM_COMMAND).await?),
-            latest: None,
-            stale_after_s,
-            bad_states: 0,
-        })
+        let mut arm = Self::monitor(bus, stale_after_s).await?;
+        arm.command = Some(bus.publisher(&topics::SIM_ARM_COMMAND).await?);
+        Ok(arm)
     }
 
     /// A read-only handle: reads the state, refuses to write.
@@ -63,7 +55,7 @@ impl ArmHardware for BusArm {
     fn read(&mut self) -> Result<ArmState, HardwareError> {
         while let Some(r) = self.state.try_recv() {
             match wire::arm_state(&r.msg) {
-                Ok(s) => self.latest = Some((s, r.receive_timestamp_ns as f64 * 1e-9)),
+                Ok(s) => self.latest = Some((s, r.receive_time_s())),
                 Err(e) => {
                     self.bad_states += 1;
                     tracing::warn!("arm state refused: {e}");
@@ -108,15 +100,9 @@ impl BusHand {
     /// # Errors
     /// [`BusError`] if the subscriptions cannot be declared.
     pub async fn new(bus: &Bus, stale_after_s: f64) -> Result<Self, BusError> {
-        Ok(Self {
-            state: bus.subscriber(&topics::SIM_HAND_STATE).await?,
-            tactile: bus.subscriber(&topics::SIM_HAND_TACTILE).await?,
-            command: Some(bus.publisher(&topics::SIM_HAND_COMMAND).await?),
-            latest: None,
-            latest_tactile: None,
-            stale_after_s,
-            bad_states: 0,
-        })
+        let mut hand = Self::monitor(bus, stale_after_s).await?;
+        hand.command = Some(bus.publisher(&topics::SIM_HAND_COMMAND).await?);
+        Ok(hand)
     }
 
     /// A read-only handle: reads the state, refuses to write.
@@ -147,7 +133,7 @@ impl HandHardware for BusHand {
         }
         while let Some(r) = self.state.try_recv() {
             match wire::hand_state(&r.msg, self.latest_tactile.as_ref()) {
-                Ok(s) => self.latest = Some((s, r.receive_timestamp_ns as f64 * 1e-9)),
+                Ok(s) => self.latest = Some((s, r.receive_time_s())),
                 Err(e) => {
                     self.bad_states += 1;
                     tracing::warn!("hand state refused: {e}");

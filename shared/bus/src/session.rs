@@ -411,6 +411,11 @@ pub struct Received<T> {
 }
 
 impl<T> Received<T> {
+    /// Receive time in seconds since the Unix epoch (receiver clock).
+    pub fn receive_time_s(&self) -> f64 {
+        self.receive_timestamp_ns as f64 * 1e-9
+    }
+
     /// Receive time minus source time, ns.
     pub fn latency_ns(&self) -> i64 {
         self.receive_timestamp_ns - self.source_timestamp_ns

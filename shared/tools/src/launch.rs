@@ -63,12 +63,10 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
     zenoh.apply(&mut cfg);
     let monitor = async {
         if args.quiet {
-            match args.duration_s {
-                Some(s) => tokio::time::sleep(Duration::from_secs_f64(s.max(0.0))).await,
-                None => {
-                    let _ = tokio::signal::ctrl_c().await;
-                }
-            }
+            teleop_bus::node::stop_signal(
+                args.duration_s.map(|s| Duration::from_secs_f64(s.max(0.0))),
+            )
+            .await;
             Ok(())
         } else {
             crate::inspect::monitor(&cfg, None, args.duration_s).await
