@@ -9,6 +9,7 @@ use teleop_bus::config::{load_toml, parse_toml};
 use teleop_local_site::wrist_tracker::WristTrackerConfig;
 use teleop_remote_site::arm_node::ArmNodeConfig;
 use teleop_remote_site::feedback_node::FeedbackConfig;
+use teleop_remote_site::hand_node::HandNodeConfig;
 use teleop_remote_site::sim_node::SimNodeConfig;
 use teleop_system_tests::repo_root;
 
@@ -26,6 +27,7 @@ fn checker(stem: &str) -> Option<fn(&Path)> {
         "pr2_arm_controller" => Some(check::<ArmNodeConfig>),
         "remote_sim" => Some(check::<SimNodeConfig>),
         "feedback_publisher" => Some(check::<FeedbackConfig>),
+        "shadow_hand_controller" => Some(check::<HandNodeConfig>),
         _ => None,
     }
 }
@@ -65,6 +67,21 @@ fn shipped_defaults_equal_built_in_defaults() {
     let path = repo_root().join("deploy/config/feedback_publisher.toml");
     let shipped: FeedbackConfig = load_toml(&path).unwrap();
     assert_eq!(shipped, FeedbackConfig::default());
+    let path = repo_root().join("deploy/config/shadow_hand_controller.toml");
+    let shipped: HandNodeConfig = load_toml(&path).unwrap();
+    assert_eq!(shipped, HandNodeConfig::default());
+}
+
+#[test]
+fn hand_controller_config_errors_are_named() {
+    let err = parse_toml::<HandNodeConfig>("[hand.controller]\nmode = \"torque\"\n").unwrap_err();
+    assert!(err.contains("torque"), "{err}");
+    let err = parse_toml::<HandNodeConfig>("[hand.controller.adaptive]\nzeta = 1.0\n").unwrap_err();
+    assert!(err.contains("zeta"), "{err}");
+    let cfg: HandNodeConfig = parse_toml("[hand]\nrate_hz = 5000.0\n").unwrap();
+    assert!(cfg.validate().unwrap_err().contains("rate_hz"));
+    let cfg: HandNodeConfig = parse_toml("[hand.controller]\nhold_max_effort_nm = 3.0\n").unwrap();
+    assert!(cfg.validate().unwrap_err().contains("hold_max_effort_nm"));
 }
 
 #[test]

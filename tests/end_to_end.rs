@@ -182,3 +182,74 @@ async fn wrist_tracker_drives_the_simulated_pr2_arm_through_the_clutch() {
     tracker_task.await.unwrap().unwrap();
     sim_task.await.unwrap().unwrap();
 }
+
+/// The simulator renders the top and side camera views of its world (as a camera driver
+/// would publish them); the feedback publisher forwards them, rate-limited, to the
+/// operator site.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn remote_camera_views_reach_the_operator_site() {
+    use teleop_remote_site::feedback_node::{self, FeedbackConfig};
+    use teleop_remote_site::sim::CameraViewsConfig;
+    use teleop_remote_site::sim_node::{self, SimNodeConfig};
+
+    let (hub, spoke) = isolated_pair(23, free_port().unwrap());
+    let sim = SimNodeConfig {
+        bus: hub,
+        cameras: CameraViewsConfig {
+            width_px: 160,
+            height_px: 120,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let feedback = FeedbackConfig {
+        bus: spoke.clone(),
+        ..Default::default()
+    };
+    let probe = Bus::open("probe", &spoke).await.unwrap();
+    let top = probe.subscriber(&topics::REMOTE_CAMERA_TOP).await.unwrap();
+    let side = probe.subscriber(&topics::REMOTE_CAMERA_SIDE).await.unwrap();
+    let status = probe.subscriber(&topics::NODE_STATUS).await.unwrap();
+    let sim_task = tokio::spawn(sim_node::run(sim, Some(Duration::from_secs(4))));
+    let feedback_task = tokio::spawn(feedback_node::run(
+        feedback,
+        Some(Duration::from_millis(3500)),
+    ));
+
+    for (view, sub, frame_id) in [
+        ("top", &top, "remote_camera_top_optical_frame"),
+        ("side", &side, "remote_camera_side_optical_frame"),
+    ] {
+        for _ in 0..3 {
+            let image = sub
+                .recv_timeout(Duration::from_secs(4))
+                .await
+                .unwrap_or_else(|| panic!("no {view} image reached the operator site"))
+                .msg;
+            assert_eq!(image.encoding, "rgb8", "{view}");
+            assert_eq!((image.width, image.height), (160, 120), "{view}");
+            assert_eq!(image.header.frame_id, frame_id);
+            assert!(image.header.stamp.sec > 0, "{view}: stamped");
+            image.check_layout().unwrap();
+            // Not a blank frame: the robot is in view.
+            assert!(image.data.iter().filter(|&&v| v > 0).count() > image.data.len() / 20);
+        }
+    }
+    // The feedback publisher counts what it forwarded.
+    let mut forwarded = None;
+    let until = tokio::time::Instant::now() + Duration::from_secs(4);
+    while forwarded.is_none() && tokio::time::Instant::now() < until {
+        if let Some(s) = status.recv_timeout(Duration::from_millis(200)).await
+            && s.msg.node_name == "feedback_publisher"
+            && s.msg.counter("feedback.camera_top.forwarded").unwrap_or(0) > 0
+        {
+            forwarded = Some(s.msg);
+        }
+    }
+    let s = forwarded.expect("a feedback_publisher status counting forwarded top images");
+    assert!(s.counter("feedback.camera_side.forwarded").unwrap() > 0);
+    assert!(s.counter("feedback.camera_top.dropped").is_some());
+    assert_eq!(top.stats().rejected(), 0);
+    feedback_task.await.unwrap().unwrap();
+    sim_task.await.unwrap().unwrap();
+}

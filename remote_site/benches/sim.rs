@@ -2,14 +2,23 @@
 //! first finger pressed into the mouse (one active contact), and of the cup grasp with
 //! all five fingertips in contact.
 //!
+//! The remote camera views: posing the scene and rendering both default 320x240 views
+//! of the touching scene (arm at the simulator node's working posture), one view alone,
+//! and copying both frames into `rgb8` messages, against a baseline in the same run: a
+//! plain copy of the same image bytes.
+//!
 //! ```text
 //! cargo bench -p teleop-remote-site --bench sim
 //! ```
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::SVector;
+use teleop_msgs::{Image, Time};
 use teleop_remote_site::hardware::HandCommand;
-use teleop_remote_site::sim::{CupGraspConfig, TouchingTaskConfig, World};
+use teleop_remote_site::sim::{
+    CameraViewsConfig, CupGraspConfig, SceneCameras, TouchingTaskConfig, View, World,
+};
+use teleop_remote_site::sim_node::WORKING_POSTURE_RAD;
 
 fn bench(c: &mut Criterion) {
     let config = TouchingTaskConfig::default();
@@ -36,6 +45,44 @@ fn bench(c: &mut Criterion) {
     )));
     cup.step(1.0);
     c.bench_function("cup_grasp_step_1ms", |b| b.iter(|| cup.step_once()));
+
+    let Ok(scene) = World::touching_task(&TouchingTaskConfig {
+        arm_posture_rad: WORKING_POSTURE_RAD,
+        ..TouchingTaskConfig::default()
+    }) else {
+        return;
+    };
+    let Ok(mut cameras) = SceneCameras::new(&scene, &CameraViewsConfig::default()) else {
+        return;
+    };
+    c.bench_function("cameras_render_both_views_320x240", |b| {
+        b.iter(|| cameras.render(&scene))
+    });
+    c.bench_function("cameras_render_top_view_320x240", |b| {
+        b.iter(|| cameras.render_view(&scene, View::Top))
+    });
+    let mut images = [Image::default(), Image::default()];
+    c.bench_function("cameras_frames_to_rgb8_messages", |b| {
+        b.iter(|| {
+            for (view, image) in View::ALL.into_iter().zip(&mut images) {
+                cameras.write_image(view, Time::default(), image);
+            }
+        })
+    });
+    // Baseline: copying the same bytes (two 320x240 rgb8 images).
+    let source: Vec<Vec<u8>> = View::ALL
+        .iter()
+        .map(|v| cameras.frame(*v).rgb().unwrap_or_default().to_vec())
+        .collect();
+    let mut copies = vec![Vec::new(), Vec::new()];
+    c.bench_function("baseline_memcpy_two_rgb8_320x240", |b| {
+        b.iter(|| {
+            for (from, to) in source.iter().zip(&mut copies) {
+                to.clear();
+                to.extend_from_slice(std::hint::black_box(from));
+            }
+        })
+    });
 }
 
 criterion_group!(benches, bench);

@@ -45,15 +45,10 @@ impl NodeConfig for ArmNodeConfig {
         &mut self.bus
     }
     fn validate(&self) -> Result<(), String> {
-        if self.operator_site_nodes.is_empty() {
-            return Err("operator_site_nodes must name at least one node".into());
-        }
-        if !(self.hardware_timeout_s.is_finite() && self.hardware_timeout_s > 0.0) {
-            return Err(format!(
-                "hardware_timeout_s must be positive, got {}",
-                self.hardware_timeout_s
-            ));
-        }
+        crate::bus_hardware::check_controller_links(
+            &self.operator_site_nodes,
+            self.hardware_timeout_s,
+        )?;
         self.arm.validate()
     }
 }

@@ -1,15 +1,37 @@
-//! Hardware clients over the bus: the arm and the hand as a driver process (the
-//! simulator today, a real driver later) exposes them on the `teleop/hw/...` topics.
-//! They implement the same [`ArmHardware`] / [`HandHardware`] traits as in-process
-//! backends, so the controllers cannot tell where the hardware is.
+//! Hardware clients over the bus: the arm, the hand and the cameras as a driver process
+//! (the simulator today, a real driver later) exposes them on the `teleop/hw/...`
+//! topics. They implement the same [`ArmHardware`] / [`HandHardware`] /
+//! [`CameraHardware`] traits as in-process backends, so the controllers cannot tell
+//! where the hardware is.
 
-use teleop_bus::{Bus, BusError, Publisher, Subscriber, topics};
-use teleop_msgs::{FingertipPressures, JointState, unix_seconds_now as now_s};
+use teleop_bus::{Bus, BusError, Publisher, Subscriber, Topic, topics};
+use teleop_msgs::{FingertipPressures, Image, JointState, unix_seconds_now as now_s};
 
 use crate::hardware::{
-    ArmCommand, ArmHardware, ArmState, HandCommand, HandHardware, HandState, HardwareError,
+    ArmCommand, ArmHardware, ArmState, CameraHardware, HandCommand, HandHardware, HandState,
+    HardwareError,
 };
 use crate::wire;
+
+/// Checks the settings every controller node has: the operator-site nodes it watches
+/// (at least one) and how old the hardware state may get (finite, > 0).
+///
+/// # Errors
+/// A message naming the field.
+pub fn check_controller_links(
+    operator_site_nodes: &[String],
+    hardware_timeout_s: f64,
+) -> Result<(), String> {
+    if operator_site_nodes.is_empty() {
+        return Err("operator_site_nodes must name at least one node".into());
+    }
+    if !(hardware_timeout_s.is_finite() && hardware_timeout_s > 0.0) {
+        return Err(format!(
+            "hardware_timeout_s must be positive, got {hardware_timeout_s}"
+        ));
+    }
+    Ok(())
+}
 
 /// The arm hardware reached over the bus.
 #[derive(Debug)]
@@ -158,5 +180,60 @@ impl HandHardware for BusHand {
         publisher
             .put(&wire::hand_command_msg(command, now_s()))
             .map_err(|e| HardwareError::Fault(e.to_string()))
+    }
+}
+
+/// A camera reached over the bus (read-only: cameras take no commands), e.g. one of
+/// [`topics::SIM_CAMERA_TOP`] / [`topics::SIM_CAMERA_SIDE`].
+#[derive(Debug)]
+pub struct BusCamera {
+    images: Subscriber<Image>,
+    /// Images this handle itself skipped (besides those the subscriber overwrote).
+    skipped: u64,
+    bad_images: u64,
+}
+
+impl BusCamera {
+    /// Subscribes to `topic`.
+    ///
+    /// # Errors
+    /// [`BusError`] if the subscription cannot be declared.
+    pub async fn monitor(bus: &Bus, topic: &Topic<Image>) -> Result<Self, BusError> {
+        Ok(Self {
+            images: bus.subscriber(topic).await?,
+            skipped: 0,
+            bad_images: 0,
+        })
+    }
+
+    /// Images refused because their layout did not match their size and encoding.
+    pub fn bad_images(&self) -> u64 {
+        self.bad_images
+    }
+}
+
+impl CameraHardware for BusCamera {
+    fn latest(&mut self) -> Result<Option<Image>, HardwareError> {
+        let mut newest = None;
+        while let Some(r) = self.images.try_recv() {
+            if newest.is_some() {
+                self.skipped += 1;
+            }
+            newest = Some(r.msg);
+        }
+        match newest {
+            Some(image) => match image.check_layout() {
+                Ok(()) => Ok(Some(image)),
+                Err(e) => {
+                    self.bad_images += 1;
+                    Err(HardwareError::Fault(format!("camera image refused: {e}")))
+                }
+            },
+            None => Ok(None),
+        }
+    }
+
+    fn dropped(&self) -> u64 {
+        self.skipped + self.images.stats().overwritten
     }
 }

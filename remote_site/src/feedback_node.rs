@@ -1,7 +1,9 @@
 //! The feedback publisher: what the operator site sees of the robot site. Reads the
 //! arm and hand hardware (read-only handles: it never commands them) and publishes the
 //! joint states of both robots and the five fingertip pressures, rate-limited, plus its
-//! status.
+//! status. Forwards the two camera views (`teleop/hw/camera/{top,side}/image`) to the
+//! operator site, each at most `camera_rate_hz`, newest frame only: frames that arrive
+//! faster are dropped and counted, never queued.
 
 use std::time::Duration;
 
@@ -10,8 +12,8 @@ use teleop_bus::{Bus, BusConfig, NodeConfig, StatusReporter, topics};
 use teleop_msgs::Lifecycle;
 use tokio::time::MissedTickBehavior;
 
-use crate::bus_hardware::{BusArm, BusHand};
-use crate::hardware::{ArmHardware, HandHardware};
+use crate::bus_hardware::{BusArm, BusCamera, BusHand};
+use crate::hardware::{ArmHardware, CameraHardware, HandHardware};
 use crate::wire;
 
 /// Configuration of the `feedback_publisher` node.
@@ -23,6 +25,9 @@ pub struct FeedbackConfig {
     pub rate_hz: f64,
     /// Hardware state older than this is not forwarded, s.
     pub hardware_timeout_s: f64,
+    /// Highest rate at which each camera view is forwarded, Hz, in [0, 60]; 0 forwards
+    /// no camera images.
+    pub camera_rate_hz: f64,
     pub bus: BusConfig,
 }
 
@@ -32,6 +37,7 @@ impl Default for FeedbackConfig {
             node_name: "feedback_publisher".into(),
             rate_hz: topics::PR2_JOINT_STATES.spec.rate_hz,
             hardware_timeout_s: 0.1,
+            camera_rate_hz: topics::REMOTE_CAMERA_TOP.spec.rate_hz,
             bus: BusConfig::default(),
         }
     }
@@ -54,6 +60,15 @@ impl NodeConfig for FeedbackConfig {
                 self.hardware_timeout_s
             ));
         }
+        if !(self.camera_rate_hz.is_finite()
+            && self.camera_rate_hz >= 0.0
+            && self.camera_rate_hz <= 60.0)
+        {
+            return Err(format!(
+                "camera_rate_hz must be in [0, 60], got {}",
+                self.camera_rate_hz
+            ));
+        }
         Ok(())
     }
 }
@@ -70,9 +85,28 @@ pub async fn run(cfg: FeedbackConfig, duration: Option<Duration>) -> anyhow::Res
     let hand_pub = bus.publisher(&topics::SHADOW_JOINT_STATES).await?;
     let pressure_pub = bus.publisher(&topics::FINGERTIP_PRESSURES).await?;
     let status = StatusReporter::new(&bus).await?;
+    let mut cameras = Vec::new();
+    if cfg.camera_rate_hz > 0.0 {
+        for (name, from, to) in [
+            ("top", topics::SIM_CAMERA_TOP, topics::REMOTE_CAMERA_TOP),
+            ("side", topics::SIM_CAMERA_SIDE, topics::REMOTE_CAMERA_SIDE),
+        ] {
+            cameras.push(CameraForward {
+                name,
+                camera: BusCamera::monitor(&bus, &from).await?,
+                publisher: bus.publisher(&to).await?,
+                forwarded: 0,
+            });
+        }
+    }
     let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / cfg.rate_hz));
     tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let mut status_tick = tokio::time::interval(Duration::from_secs(1));
+    // With cameras off (rate 0) this never ticks; the fallback only avoids 1 / 0.
+    let camera_period =
+        Duration::try_from_secs_f64(1.0 / cfg.camera_rate_hz).unwrap_or(Duration::from_secs(1));
+    let mut camera_tick = tokio::time::interval(camera_period);
+    camera_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let stop = teleop_bus::node::stop_signal(duration);
     tokio::pin!(stop);
     let (mut arm_sent, mut hand_sent, mut missing) = (0u64, 0u64, 0u64);
@@ -81,11 +115,16 @@ pub async fn run(cfg: FeedbackConfig, duration: Option<Duration>) -> anyhow::Res
         tokio::select! {
             _ = &mut stop => break,
             _ = status_tick.tick() => {
-                let counters = vec![
+                let mut counters = vec![
                     ("feedback.arm_states".to_owned(), arm_sent),
                     ("feedback.hand_states".to_owned(), hand_sent),
                     ("feedback.hardware_missing".to_owned(), missing),
                 ];
+                for c in &cameras {
+                    let name = |what| format!("feedback.camera_{}.{what}", c.name);
+                    counters.push((name("forwarded"), c.forwarded));
+                    counters.push((name("dropped"), c.camera.dropped()));
+                }
                 let _ = status.report(Lifecycle::Active, &counters, &last_error);
             }
             _ = tick.tick() => {
@@ -109,9 +148,37 @@ pub async fn run(cfg: FeedbackConfig, duration: Option<Duration>) -> anyhow::Res
                     Err(e) => { missing += 1; last_error = e.to_string(); }
                 }
             }
+            _ = camera_tick.tick(), if !cameras.is_empty() => {
+                for c in &mut cameras {
+                    if let Err(e) = c.forward() {
+                        last_error = format!("camera {}: {e}", c.name);
+                    }
+                }
+            }
         }
     }
-    drop((arm, hand, arm_pub, hand_pub, pressure_pub, status));
+    drop((arm, hand, arm_pub, hand_pub, pressure_pub, status, cameras));
     bus.close().await?;
     Ok(())
+}
+
+/// One camera view on its way to the operator site.
+#[derive(Debug)]
+struct CameraForward {
+    name: &'static str,
+    camera: BusCamera,
+    publisher: teleop_bus::Publisher<teleop_msgs::Image>,
+    forwarded: u64,
+}
+
+impl CameraForward {
+    /// Sends the newest image since the last call, if any, as it came (stamp and frame
+    /// of the camera).
+    fn forward(&mut self) -> anyhow::Result<()> {
+        if let Some(image) = self.camera.latest()? {
+            self.publisher.put(&image)?;
+            self.forwarded += 1;
+        }
+        Ok(())
+    }
 }

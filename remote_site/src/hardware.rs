@@ -7,6 +7,7 @@
 //! Joint order everywhere is the order of the name constants below.
 
 use nalgebra::SVector;
+use teleop_msgs::Image;
 
 /// The 7 joints the arm controller drives: the PR2 right arm's 5 joints, then the Shadow
 /// hand's 2 wrist joints (the hand replaces the PR2 wrist; thesis ch. 6.2.3).
@@ -107,4 +108,23 @@ pub trait HandHardware: Send {
     /// # Errors
     /// [`HardwareError`] if the command cannot be delivered.
     fn write(&mut self, command: &HandCommand) -> Result<(), HardwareError>;
+}
+
+/// A camera as its consumers see it: a stream of images of which only the newest
+/// matters (a consumer that polls slower than the camera runs skips frames, it never
+/// falls behind).
+pub trait CameraHardware: Send {
+    /// The newest image that arrived since the last call, `None` if none did. Older
+    /// images that arrived in between are dropped and counted in
+    /// [`CameraHardware::dropped`].
+    ///
+    /// # Errors
+    /// [`HardwareError::Fault`] when the newest image is malformed (its layout does not
+    /// match its size and encoding).
+    fn latest(&mut self) -> Result<Option<Image>, HardwareError>;
+    /// Images that arrived but were replaced by a newer one before [`latest`] took
+    /// them.
+    ///
+    /// [`latest`]: CameraHardware::latest
+    fn dropped(&self) -> u64;
 }

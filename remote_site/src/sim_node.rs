@@ -11,7 +11,9 @@ use teleop_bus::{Bus, BusConfig, NodeConfig, StatusReporter, topics};
 use teleop_msgs::Lifecycle;
 use tokio::time::MissedTickBehavior;
 
-use crate::sim::{CupGraspConfig, TouchingTaskConfig, World, WorldConfig};
+use crate::sim::{
+    CameraViewsConfig, CupGraspConfig, SceneCameras, TouchingTaskConfig, View, World, WorldConfig,
+};
 use crate::wire;
 
 /// Which world to build.
@@ -42,6 +44,9 @@ pub struct SimNodeConfig {
     pub world: WorldConfig,
     pub touching: TouchingTaskConfig,
     pub cup_grasp: CupGraspConfig,
+    /// The top and side camera views, rendered from the world and published on
+    /// `teleop/hw/camera/{top,side}/image` as a camera driver would.
+    pub cameras: CameraViewsConfig,
     pub bus: BusConfig,
 }
 
@@ -57,6 +62,7 @@ impl Default for SimNodeConfig {
                 ..TouchingTaskConfig::default()
             },
             cup_grasp: CupGraspConfig::default(),
+            cameras: CameraViewsConfig::default(),
             bus: BusConfig::default(),
         }
     }
@@ -76,6 +82,9 @@ impl NodeConfig for SimNodeConfig {
                 self.state_rate_hz
             ));
         }
+        self.cameras
+            .validate()
+            .map_err(|e| format!("cameras: {e}"))?;
         Ok(())
     }
 }
@@ -105,11 +114,17 @@ pub async fn run(cfg: SimNodeConfig, duration: Option<Duration>) -> anyhow::Resu
     let hand_state = bus.publisher(&topics::SIM_HAND_STATE).await?;
     let tactile = bus.publisher(&topics::SIM_HAND_TACTILE).await?;
     let status = StatusReporter::new(&bus).await?;
+    let mut cameras = CameraViews::open(&bus, &cfg.cameras, &world).await?;
     tracing::info!(node = %cfg.node_name, scene = ?cfg.scene, "simulator running in real time");
 
     let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / cfg.state_rate_hz));
     tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let mut status_tick = tokio::time::interval(Duration::from_secs(1));
+    // Disabled cameras never tick; the fallback only keeps an invalid rate from panicking.
+    let camera_period =
+        Duration::try_from_secs_f64(1.0 / cfg.cameras.rate_hz).unwrap_or(Duration::from_secs(1));
+    let mut camera_tick = tokio::time::interval(camera_period);
+    camera_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let stop = teleop_bus::node::stop_signal(duration);
     tokio::pin!(stop);
     let start = Instant::now();
@@ -123,6 +138,7 @@ pub async fn run(cfg: SimNodeConfig, duration: Option<Duration>) -> anyhow::Resu
                 let counters = vec![
                     ("sim.time_ms".to_owned(), (world.time_s() * 1e3) as u64),
                     ("sim.bad_commands".to_owned(), bad_commands),
+                    ("sim.camera_frames".to_owned(), cameras.as_ref().map_or(0, |c| c.frames)),
                 ];
                 let _ = status.report(Lifecycle::Active, &counters, &last_error);
             }
@@ -153,9 +169,66 @@ pub async fn run(cfg: SimNodeConfig, duration: Option<Duration>) -> anyhow::Resu
                 }
                 if let Err(e) = tactile.put(&wire::tactile_msg(&hs)) { last_error = e.to_string(); }
             }
+            _ = camera_tick.tick(), if cameras.is_some() => {
+                if let Some(c) = cameras.as_mut()
+                    && let Err(e) = c.publish(&world)
+                {
+                    last_error = format!("cameras: {e}");
+                }
+            }
         }
     }
-    drop((arm_cmd, hand_cmd, arm_state, hand_state, tactile, status));
+    drop((
+        arm_cmd, hand_cmd, arm_state, hand_state, tactile, status, cameras,
+    ));
     bus.close().await?;
     Ok(())
+}
+
+/// The two camera views as the simulator publishes them: rendered from the world at the
+/// camera rate, newest only (a slow subscriber misses frames, never delays them).
+#[derive(Debug)]
+struct CameraViews {
+    cameras: SceneCameras,
+    publishers: [teleop_bus::Publisher<teleop_msgs::Image>; 2],
+    /// One message per view, reused between frames.
+    images: [teleop_msgs::Image; 2],
+    frames: u64,
+}
+
+impl CameraViews {
+    /// `None` when the cameras are disabled.
+    async fn open(
+        bus: &Bus,
+        config: &CameraViewsConfig,
+        world: &World,
+    ) -> anyhow::Result<Option<Self>> {
+        if !config.enabled {
+            return Ok(None);
+        }
+        Ok(Some(Self {
+            cameras: SceneCameras::new(world, config)?,
+            publishers: [
+                bus.publisher(&topics::SIM_CAMERA_TOP).await?,
+                bus.publisher(&topics::SIM_CAMERA_SIDE).await?,
+            ],
+            images: Default::default(),
+            frames: 0,
+        }))
+    }
+
+    fn publish(&mut self, world: &World) -> anyhow::Result<()> {
+        self.cameras.render(world)?;
+        let stamp = teleop_msgs::Time::now();
+        for ((view, publisher), image) in View::ALL
+            .into_iter()
+            .zip(&self.publishers)
+            .zip(&mut self.images)
+        {
+            self.cameras.write_image(view, stamp, image);
+            publisher.put(image)?;
+        }
+        self.frames += 1;
+        Ok(())
+    }
 }

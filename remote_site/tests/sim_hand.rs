@@ -62,11 +62,12 @@ fn effort_is_clamped_and_limits_hold() {
     w.command_hand(&HandCommand::Effort(cmd));
     w.step(1.0);
     let state = w.hand_state();
-    assert_eq!(state.effort_nm[j], 1.0);
+    let max = WorldConfig::default().hand.max_effort_nm;
+    assert_eq!(state.effort_nm[j], max);
     let (_, upper) = w.hand_limits_rad();
     let over = state.position_rad[j] - upper[j];
-    // 1 N m against 50 N m/rad: 0.02 rad past the limit, at rest.
-    assert!(over > 0.0 && over < 0.03, "{over}");
+    // 2 N m against 50 N m/rad: 0.04 rad past the limit, at rest.
+    assert!(over > 0.0 && over < 1.5 * max / 50.0, "{over}");
     assert!(state.velocity_rad_s[j].abs() < 1e-6);
 }
 

@@ -1,5 +1,4 @@
 //! Operator-site wrist tracker node (simulated operator today).
-use anyhow::Context;
 use clap::Parser;
 use teleop_bus::NodeArgs;
 use teleop_local_site::wrist_tracker::{self, WristTrackerConfig};
@@ -15,16 +14,12 @@ struct Cli {
 #[tokio::main]
 async fn main() -> anyhow::Result<()> {
     teleop_bus::init_tracing();
-    let cli = Cli::parse();
-    let Some(cfg) = cli
+    Cli::parse()
         .node
-        .load::<WristTrackerConfig>()
-        .context("loading configuration")?
-    else {
-        return Ok(());
-    };
-    let duration = cli.node.duration()?;
-    let counters = wrist_tracker::run(cfg, duration).await?;
-    tracing::info!(?counters, "wrist tracker stopped");
-    Ok(())
+        .run(|cfg: WristTrackerConfig, duration| async move {
+            let counters = wrist_tracker::run(cfg, duration).await?;
+            tracing::info!(?counters, "wrist tracker stopped");
+            anyhow::Ok(())
+        })
+        .await
 }

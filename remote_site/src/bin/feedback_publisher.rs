@@ -1,8 +1,8 @@
-//! Robot-site node: publishes joint states of both robots and the fingertip pressures to the operator site.
-use anyhow::Context;
+//! Robot-site node: publishes joint states of both robots, the fingertip pressures and the
+//! remote camera views to the operator site.
 use clap::Parser;
 use teleop_bus::NodeArgs;
-use teleop_remote_site::feedback_node::{self, FeedbackConfig};
+use teleop_remote_site::feedback_node;
 
 /// Forwards the robot site's state to the operator site.
 #[derive(Debug, Parser)]
@@ -15,14 +15,5 @@ struct Cli {
 #[tokio::main]
 async fn main() -> anyhow::Result<()> {
     teleop_bus::init_tracing();
-    let cli = Cli::parse();
-    let Some(cfg) = cli
-        .node
-        .load::<FeedbackConfig>()
-        .context("loading configuration")?
-    else {
-        return Ok(());
-    };
-    let duration = cli.node.duration()?;
-    feedback_node::run(cfg, duration).await
+    Cli::parse().node.run(feedback_node::run).await
 }

@@ -88,7 +88,9 @@ pub struct HandSimConfig {
     /// bare link inertia.
     pub armature_kg_m2: f64,
     /// Largest joint torque of the motors, N m (effort commands and the position servo
-    /// are clamped to it). Default 1.0 (Menagerie `forcerange`).
+    /// are clamped to it). Default 2.0: the finger joints' `effort` limit in our Shadow
+    /// hand URDF, the same limit the hand controller clamps to in every mode (MuJoCo
+    /// Menagerie's model uses 1.0).
     pub max_effort_nm: f64,
     /// Proportional gain of the position servo, N m/rad. Default 2.0 (ours).
     pub servo_kp_nm_rad: f64,
@@ -111,7 +113,7 @@ impl Default for HandSimConfig {
         Self {
             damping_nm_s_rad: 0.05,
             armature_kg_m2: 2e-4,
-            max_effort_nm: 1.0,
+            max_effort_nm: 2.0,
             servo_kp_nm_rad: 2.0,
             servo_kd_nm_s_rad: 0.01,
             limit_stiffness_nm_rad: 50.0,

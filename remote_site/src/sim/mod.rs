@@ -88,11 +88,15 @@
 //! posture. [`ExternalLoad`]s (a joint torque or a fingertip force, ramped) stand in for
 //! the screws poured into the held cup.
 //!
+//! **Cameras** ([`camera`]): [`SceneCameras`] renders the world from the top and side
+//! camera views (`rgb8`), as the simulator node publishes them.
+//!
 //! **Determinism**: no clock, no threads, no hash-ordered iteration; measurement noise
 //! ([`NoiseConfig`], default none) comes from a seeded ChaCha8. Same config, seed and
 //! command sequence give bit-identical states.
 
 mod arm;
+pub mod camera;
 pub mod config;
 pub mod error;
 pub mod geometry;
@@ -102,6 +106,7 @@ mod scenarios;
 mod world;
 
 pub use arm::{ArmJointLimits, ArmSim};
+pub use camera::{CameraError, CameraViewsConfig, SceneCameras, View};
 pub use config::{ArmSimConfig, ContactConfig, HandSimConfig, NoiseConfig, WorldConfig};
 pub use error::SimError;
 pub use hardware::{SharedWorld, SimArm, SimHand, share};

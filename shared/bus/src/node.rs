@@ -74,6 +74,27 @@ impl NodeArgs {
         cfg.validate().map_err(ConfigError::Invalid)?;
         Ok(Some(cfg))
     }
+
+    /// A node binary's whole `main` after parsing: loads the configuration
+    /// ([`load`](Self::load)) and calls `run` with it and the `--duration-s` limit;
+    /// returns at once after `--show-default-config`. What `run` returns on success
+    /// (e.g. final counters) is dropped.
+    ///
+    /// # Errors
+    /// The configuration's [`ConfigError`], or what `run` returns.
+    pub async fn run<C, F, Fut, T, E>(&self, run: F) -> Result<(), E>
+    where
+        C: NodeConfig,
+        F: FnOnce(C, Option<std::time::Duration>) -> Fut,
+        Fut: std::future::Future<Output = Result<T, E>>,
+        E: From<ConfigError>,
+    {
+        let Some(cfg) = self.load::<C>()? else {
+            return Ok(());
+        };
+        let duration = self.duration()?;
+        run(cfg, duration).await.map(drop)
+    }
 }
 
 /// Publishes this node's [`NodeStatus`] on [`topics::NODE_STATUS`].

@@ -319,6 +319,22 @@ pub const SIM_HAND_COMMAND: Topic<JointState> = Topic::new(
     "Hand hardware command: 17 finger joints, either `effort` (N m) or `position` (rad)",
 );
 
+/// Camera hardware, top view of the robot's workspace (the simulator renders it as a
+/// camera driver would publish it).
+pub const SIM_CAMERA_TOP: Topic<Image> = Topic::new(
+    "teleop/hw/camera/top/image",
+    RemoteInternal,
+    15.0,
+    Q::Image,
+    None,
+    "Camera hardware, top view of the workspace (rgb8); forwarded rate-limited by the feedback publisher",
+);
+/// Camera hardware, side view.
+pub const SIM_CAMERA_SIDE: Topic<Image> = SIM_CAMERA_TOP.renamed(
+    "teleop/hw/camera/side/image",
+    "Camera hardware, side view of the workspace (rgb8); forwarded rate-limited by the feedback publisher",
+);
+
 /// Every topic of the system.
 pub const ALL: &[TopicSpec] = &[
     WRIST_POSE.spec,
@@ -337,6 +353,8 @@ pub const ALL: &[TopicSpec] = &[
     SIM_HAND_STATE.spec,
     SIM_HAND_TACTILE.spec,
     SIM_HAND_COMMAND.spec,
+    SIM_CAMERA_TOP.spec,
+    SIM_CAMERA_SIDE.spec,
 ];
 
 /// Looks a topic up by name (leading/trailing slashes ignored).

@@ -14,6 +14,7 @@ use tokio::process::{Child, Command};
 pub const NODES: &[&str] = &[
     "remote_sim",
     "pr2_arm_controller",
+    "shadow_hand_controller",
     "feedback_publisher",
     "wrist_tracker",
 ];

@@ -43,8 +43,8 @@
 //!    [`ERROR_LIMIT_RAD`](super::input::ERROR_LIMIT_RAD));
 //! 2. `g` at the current phase `s`;
 //! 3. every weight `n` of joint `i`: forward Euler of (8.15)-(8.17),
-//!    `θ_n ← θ_n + dt · Θ ε_i (e_i | ė_i | 1) g_n`, preceded (our option, default
-//!    off: `α = 0` skips it) by forgetting toward the initial weight `θ⁰`,
+//!    `θ_n ← θ_n + dt · Θ ε_i (e_i | ė_i | 1) g_n`, preceded (our addition, default
+//!    `α = 1/s`; `α = 0` skips it, the law as printed) by forgetting toward the initial weight `θ⁰`,
 //!    `θ_n ← θ⁰ + (θ_n - θ⁰) exp(-γ dt)` with `γ = α / (1 + β ε_i²)`; then
 //!    **projection** of every weight onto `[K_s,min, K_s,max]`, `[K_d,min, K_d,max]`,
 //!    `[-v_max, v_max]` (our safety addition: since `g` is a partition of unity,
@@ -62,7 +62,7 @@
 //!
 //! # Behaviour to know about
 //!
-//! * **Ratchet.** As printed (no forgetting), `∫ ε e dt = e²/2 + ζ ∫ e² dt` only
+//! * **Ratchet.** As printed (`forgetting_rate_per_s = 0`), `∫ ε e dt = e²/2 + ζ ∫ e² dt` only
 //!   grows, and so does `K_d` with `∫ ė² dt`: stiffness and damping ratchet up with
 //!   every persistent error and every motion, up to their bounds, until a reset. And
 //!   `v` integrates any persistent error: pressing into a surface (target behind it)

@@ -352,8 +352,11 @@ pub struct AdaptiveConfig<const N: usize> {
     /// term. The form follows the forgetting factor of the biomimetic controller the
     /// thesis builds on (its reference 167, Yang et al., IEEE T-RO 2011), as we recall
     /// it (not checked against that paper here), relaxing toward the initial profile
-    /// rather than zero. Default 0: the law as printed, under which `K_s` and `K_d`
-    /// can only ratchet up (see the [module docs](super::adaptive)).
+    /// rather than zero. Default 1/s (ours): without it (`0`, the law as printed)
+    /// `K_s`, `K_d` and `v` can only ratchet up on a lasting contact (see the
+    /// [module docs](super::adaptive)); on the simulated touching task the printed law
+    /// peaks at 0.53x the position mode's force, 1/s at 0.42x
+    /// (`remote_site/tests/scenario_touching.rs`).
     #[serde(default = "adaptive_forgetting_rate_per_s")]
     pub forgetting_rate_per_s: PerJoint<N>,
     /// `β` of the forgetting factor, s²/rad²: forgetting fades while the sliding
@@ -382,7 +385,7 @@ impl<const N: usize> Default for AdaptiveConfig<N> {
             feedforward_adaptation: u(2.0),
             sliding_gain_per_s: u(10.0),
             sliding_feedback_nm_s_rad: u(0.02),
-            forgetting_rate_per_s: u(0.0),
+            forgetting_rate_per_s: u(1.0),
             forgetting_error_scale_s2_rad2: u(0.0),
             basis: BasisConfig::default(),
         }

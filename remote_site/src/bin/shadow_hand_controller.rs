@@ -1,0 +1,19 @@
+//! Robot-site node: Shadow hand control (position, fixed-gain or adaptive impedance),
+//! with the hold watchdog.
+use clap::Parser;
+use teleop_bus::NodeArgs;
+use teleop_remote_site::hand_node;
+
+/// Drives the Shadow hand's 17 finger joints toward the operator's inferred hand posture.
+#[derive(Debug, Parser)]
+#[command(version, about)]
+struct Cli {
+    #[command(flatten)]
+    node: NodeArgs,
+}
+
+#[tokio::main]
+async fn main() -> anyhow::Result<()> {
+    teleop_bus::init_tracing();
+    Cli::parse().node.run(hand_node::run).await
+}

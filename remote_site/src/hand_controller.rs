@@ -1,0 +1,395 @@
+//! Shadow hand control at the robot site, as a pure core: no clock, no network.
+//! [`HandSupervisor`] wraps the control laws of [`teleop_control::hand`] (position,
+//! fixed-gain impedance, adaptive impedance + feedforward) with what the network and
+//! the operator can get wrong.
+//!
+//! # Behaviour
+//!
+//! * **Targets.** The operator site's hand inference sends `JointState` targets for the
+//!   17 finger joints, matched by name ([`FINGER_JOINTS`]; the two wrist joints belong
+//!   to the arm). A message with a missing joint, a length mismatch or a non-finite
+//!   value is refused; so is a target beyond a joint limit by more than
+//!   `target_limit_margin_rad` (within the margin it is clamped to the limit: inference
+//!   noise at a limit is normal). Refusals are counted by reason and change nothing.
+//! * **Hold.** The hand follows the targets only while the operator's enable switch
+//!   is held (fresh operator input, like the arm), the operator site is alive and the
+//!   newest target is younger than `command_timeout_s`. Otherwise it **holds**: it
+//!   keeps the last accepted target (the last safe posture; for a grasp it lies inside
+//!   the object) with the control law frozen and every effort capped at
+//!   `controller.hold_max_effort_nm`, so a held object stays held rather than dropped
+//!   or squeezed harder. Before any target the hold posture is the measured one: the
+//!   hand starts still.
+//! * **Hardware lost.** Without a fresh hand state no effort can be computed; the
+//!   supervisor then asks the hardware's own position servo to keep the hold posture
+//!   ([`HandSupervisor::hardware_lost`]), or sends nothing if it never saw the hand.
+//! * **Bad state.** A non-finite measured state is refused by the control law (counted);
+//!   the previous command is sent again.
+
+use std::collections::BTreeMap;
+
+use nalgebra::SVector;
+use serde::{Deserialize, Serialize};
+use teleop_control::ConfigError;
+use teleop_control::hand::{HandControllerConfig, HandMode, ShadowHandController};
+use teleop_msgs::JointState;
+
+use crate::hardware::{FINGER_JOINTS, HandCommand, HandState};
+use crate::wire::{self, WireError};
+
+/// Settings of the hand supervisor; the control laws' gains are in `controller`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct HandSupervisorConfig {
+    /// Control rate, Hz. Default 500 (the laws' gains are tuned for 1 kHz and stable
+    /// at 200 Hz; see `teleop_control::hand::config`).
+    pub rate_hz: f64,
+    /// Targets older than this put the hand on hold, s. Default 0.2 (six periods of the
+    /// 30 Hz inference stream).
+    pub command_timeout_s: f64,
+    /// Operator input (enable switch) older than this puts the hand on hold, s.
+    /// Default 0.2, as the arm's `input_deadline_s`.
+    pub input_timeout_s: f64,
+    /// Targets beyond a joint limit by at most this much are clamped to it; further
+    /// out they are refused, rad. Default 0.1.
+    pub target_limit_margin_rad: f64,
+    /// The control laws, their gains and effort limits.
+    pub controller: HandControllerConfig<17>,
+}
+
+impl Default for HandSupervisorConfig {
+    fn default() -> Self {
+        Self {
+            rate_hz: 500.0,
+            command_timeout_s: 0.2,
+            input_timeout_s: 0.2,
+            target_limit_margin_rad: 0.1,
+            controller: HandControllerConfig::default(),
+        }
+    }
+}
+
+impl HandSupervisorConfig {
+    /// # Errors
+    /// A message naming the first bad field.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.rate_hz.is_finite() && self.rate_hz >= 10.0 && self.rate_hz <= 1000.0) {
+            return Err(format!(
+                "rate_hz must be in [10, 1000], got {}",
+                self.rate_hz
+            ));
+        }
+        for (name, v) in [
+            ("command_timeout_s", self.command_timeout_s),
+            ("input_timeout_s", self.input_timeout_s),
+        ] {
+            if !(v.is_finite() && v > 0.0 && v <= 10.0) {
+                return Err(format!("{name} must be in (0, 10] s, got {v}"));
+            }
+        }
+        let m = self.target_limit_margin_rad;
+        if !(m.is_finite() && (0.0..=0.5).contains(&m)) {
+            return Err(format!(
+                "target_limit_margin_rad must be in [0, 0.5], got {m}"
+            ));
+        }
+        self.controller
+            .validate()
+            .map_err(|e| format!("controller: {e}"))
+    }
+}
+
+/// Why a target message was refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum TargetRejection {
+    #[error("malformed hand target: {0}")]
+    Malformed(#[from] WireError),
+    #[error(
+        "hand target for `{joint}` is {value} rad, outside [{lower}, {upper}] by more than the margin"
+    )]
+    OutOfRange {
+        joint: &'static str,
+        value: f64,
+        lower: f64,
+        upper: f64,
+    },
+}
+
+impl TargetRejection {
+    /// Short name for counters.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            TargetRejection::Malformed(WireError::NonFinite { .. }) => "non_finite",
+            TargetRejection::Malformed(WireError::MissingJoint(_)) => "missing_joint",
+            TargetRejection::Malformed(_) => "malformed",
+            TargetRejection::OutOfRange { .. } => "out_of_range",
+        }
+    }
+}
+
+/// Why the hand is holding instead of following.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum HoldReason {
+    /// No target accepted yet.
+    NoTarget,
+    /// The newest target is older than `command_timeout_s`.
+    StaleTarget,
+    /// No operator input yet, or older than `input_timeout_s`.
+    StaleOperatorInput,
+    /// The enable switch is released.
+    EnableReleased,
+    /// None of the operator site's nodes is alive.
+    OperatorSiteLost,
+}
+
+impl HoldReason {
+    /// Short name for counters and logs.
+    pub fn name(self) -> &'static str {
+        match self {
+            HoldReason::NoTarget => "no_target",
+            HoldReason::StaleTarget => "stale_target",
+            HoldReason::StaleOperatorInput => "stale_operator_input",
+            HoldReason::EnableReleased => "enable_released",
+            HoldReason::OperatorSiteLost => "operator_site_lost",
+        }
+    }
+}
+
+/// The operator's enable switch as last received.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EnableSample {
+    /// Receive time, s (same clock as `now_s`).
+    pub received_s: f64,
+    pub enable: bool,
+}
+
+/// Result of one control period.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HandStep {
+    /// What to write to the hardware.
+    pub command: HandCommand,
+    /// `Some` while holding.
+    pub hold: Option<HoldReason>,
+}
+
+/// The hand controller with its input checks and watchdog; see the [module docs](self).
+#[derive(Debug, Clone)]
+pub struct HandSupervisor {
+    config: HandSupervisorConfig,
+    controller: ShadowHandController,
+    lower: SVector<f64, 17>,
+    upper: SVector<f64, 17>,
+    target: Option<(SVector<f64, 17>, f64)>,
+    last_step_s: Option<f64>,
+    last_hold: Option<HoldReason>,
+    steps: u64,
+    targets_accepted: u64,
+    targets_rejected: BTreeMap<&'static str, u64>,
+    holds: BTreeMap<&'static str, u64>,
+    state_rejections: u64,
+}
+
+impl HandSupervisor {
+    /// A supervisor for a hand with the given finger joint limits ([`FINGER_JOINTS`]
+    /// order), holding until the first target.
+    ///
+    /// # Errors
+    /// The control laws' configuration errors.
+    pub fn new(
+        config: HandSupervisorConfig,
+        lower_rad: SVector<f64, 17>,
+        upper_rad: SVector<f64, 17>,
+    ) -> Result<Self, ConfigError> {
+        Ok(Self {
+            controller: ShadowHandController::new(config.controller)?,
+            config,
+            lower: lower_rad,
+            upper: upper_rad,
+            target: None,
+            last_step_s: None,
+            last_hold: Some(HoldReason::NoTarget),
+            steps: 0,
+            targets_accepted: 0,
+            targets_rejected: BTreeMap::new(),
+            holds: BTreeMap::new(),
+            state_rejections: 0,
+        })
+    }
+
+    /// The Shadow hand's finger joint limits from our URDF ([`FINGER_JOINTS`] order).
+    ///
+    /// # Errors
+    /// Only if the embedded model lacked a finger joint.
+    pub fn shadow_hand_limits()
+    -> Result<(SVector<f64, 17>, SVector<f64, 17>), teleop_kinematics::KinematicsError> {
+        let robot = teleop_kinematics::robots::shadow_hand()?;
+        let limits: Vec<_> = robot.dof_limits().collect();
+        let mut lower = SVector::zeros();
+        let mut upper = SVector::zeros();
+        for (i, name) in FINGER_JOINTS.iter().enumerate() {
+            let l = limits[robot.dof_index(name)?];
+            lower[i] = l.lower;
+            upper[i] = l.upper;
+        }
+        Ok((lower, upper))
+    }
+
+    /// Checks a target message received at `received_s` and makes it the newest
+    /// target.
+    ///
+    /// # Errors
+    /// [`TargetRejection`] naming the problem; counted, nothing changes.
+    pub fn accept_target(
+        &mut self,
+        msg: &JointState,
+        received_s: f64,
+    ) -> Result<(), TargetRejection> {
+        let r = self.check_target(msg);
+        match r {
+            Ok(q) => {
+                self.target = Some((q, received_s));
+                self.targets_accepted += 1;
+                Ok(())
+            }
+            Err(e) => {
+                *self.targets_rejected.entry(e.kind()).or_default() += 1;
+                Err(e)
+            }
+        }
+    }
+
+    fn check_target(&self, msg: &JointState) -> Result<SVector<f64, 17>, TargetRejection> {
+        let mut q = wire::finger_targets(msg)?;
+        let m = self.config.target_limit_margin_rad;
+        for i in 0..17 {
+            let (lo, hi) = (self.lower[i], self.upper[i]);
+            if q[i] < lo - m || q[i] > hi + m {
+                return Err(TargetRejection::OutOfRange {
+                    joint: FINGER_JOINTS[i],
+                    value: q[i],
+                    lower: lo,
+                    upper: hi,
+                });
+            }
+            q[i] = q[i].clamp(lo, hi);
+        }
+        Ok(q)
+    }
+
+    /// One control period at `now_s` with the operator's enable switch, the operator
+    /// site's liveliness and the measured hand state.
+    pub fn step(
+        &mut self,
+        now_s: f64,
+        enable: Option<EnableSample>,
+        operator_site_alive: bool,
+        state: &HandState,
+    ) -> HandStep {
+        let nominal = 1.0 / self.config.rate_hz;
+        let dt = match self.last_step_s {
+            Some(t) if now_s - t > 0.0 => (now_s - t).min(self.config.controller.max_dt_s),
+            _ => nominal,
+        };
+        self.last_step_s = Some(now_s);
+        self.steps += 1;
+        let hold = self.hold_reason(now_s, enable, operator_site_alive);
+        if let Some(reason) = hold {
+            if self.last_hold != Some(reason) {
+                tracing::info!(reason = reason.name(), "hand on hold");
+            }
+            *self.holds.entry(reason.name()).or_default() += 1;
+        } else if self.last_hold.is_some() {
+            tracing::info!("hand follows the operator's targets");
+        }
+        self.last_hold = hold;
+        let out = match (hold, self.target) {
+            (None, Some((target, _))) => {
+                self.controller
+                    .step(dt, &state.position_rad, &state.velocity_rad_s, &target)
+            }
+            _ => self
+                .controller
+                .hold(dt, &state.position_rad, &state.velocity_rad_s),
+        };
+        let command = match out {
+            Ok(o) => o.into(),
+            Err(_) => {
+                self.state_rejections += 1;
+                (*self.controller.last_output()).into()
+            }
+        };
+        HandStep { command, hold }
+    }
+
+    fn hold_reason(
+        &self,
+        now_s: f64,
+        enable: Option<EnableSample>,
+        alive: bool,
+    ) -> Option<HoldReason> {
+        if !alive {
+            return Some(HoldReason::OperatorSiteLost);
+        }
+        match enable {
+            Some(e) if now_s - e.received_s <= self.config.input_timeout_s => {
+                if !e.enable {
+                    return Some(HoldReason::EnableReleased);
+                }
+            }
+            _ => return Some(HoldReason::StaleOperatorInput),
+        }
+        match self.target {
+            None => Some(HoldReason::NoTarget),
+            Some((_, at)) if now_s - at > self.config.command_timeout_s => {
+                Some(HoldReason::StaleTarget)
+            }
+            Some(_) => None,
+        }
+    }
+
+    /// The command to send when the hand's state is lost: the hardware's own position
+    /// servo keeps the hold posture; `None` if the hand was never seen.
+    pub fn hardware_lost(&mut self) -> Option<HandCommand> {
+        *self.holds.entry("hardware_lost").or_default() += 1;
+        self.controller
+            .hold_target_rad()
+            .map(|q| HandCommand::Position(*q))
+    }
+
+    /// The active control law.
+    pub fn mode(&self) -> HandMode {
+        self.controller.mode()
+    }
+
+    /// The control laws (profiles, limits).
+    pub fn controller(&self) -> &ShadowHandController {
+        &self.controller
+    }
+
+    /// The newest accepted target, rad.
+    pub fn target_rad(&self) -> Option<&SVector<f64, 17>> {
+        self.target.as_ref().map(|(q, _)| q)
+    }
+
+    /// Why the last step held, if it did.
+    pub fn hold_reason_now(&self) -> Option<HoldReason> {
+        self.last_hold
+    }
+
+    /// Counters for the node status: steps, targets accepted/refused by reason, hold
+    /// periods by reason, refused states, controller rejections.
+    pub fn named_counters(&self) -> Vec<(String, u64)> {
+        let mut out = vec![
+            ("hand.steps".to_owned(), self.steps),
+            ("hand.targets_accepted".to_owned(), self.targets_accepted),
+            ("hand.state_rejected".to_owned(), self.state_rejections),
+        ];
+        for (k, n) in &self.targets_rejected {
+            out.push((format!("hand.target_rejected.{k}"), *n));
+        }
+        for (k, n) in &self.holds {
+            out.push((format!("hand.hold.{k}"), *n));
+        }
+        out
+    }
+}

@@ -1,0 +1,282 @@
+//! The Shadow hand supervisor on the simulated hand, in process: every hold path
+//! (no target, stale target, enable released, stale operator input, operator site
+//! lost), bad targets refused by name, the grasp kept on hold with capped effort.
+#![allow(clippy::unwrap_used)]
+
+use nalgebra::SVector;
+use teleop_msgs::JointState;
+use teleop_remote_site::hand_controller::{
+    EnableSample, HandSupervisor, HandSupervisorConfig, HoldReason, TargetRejection,
+};
+use teleop_remote_site::hand_scenarios::finger_joint_index;
+use teleop_remote_site::hardware::{FINGER_JOINTS, HandCommand};
+use teleop_remote_site::sim::{CupGraspConfig, World, WorldConfig};
+
+const DT: f64 = 0.002;
+
+fn supervisor() -> HandSupervisor {
+    let (lo, hi) = HandSupervisor::shadow_hand_limits().unwrap();
+    HandSupervisor::new(HandSupervisorConfig::default(), lo, hi).unwrap()
+}
+
+fn target_msg(q: &SVector<f64, 17>) -> JointState {
+    JointState {
+        name: FINGER_JOINTS.iter().map(|s| (*s).to_owned()).collect(),
+        position: q.iter().copied().collect(),
+        ..Default::default()
+    }
+}
+
+fn enabled(t: f64) -> Option<EnableSample> {
+    Some(EnableSample {
+        received_s: t,
+        enable: true,
+    })
+}
+
+/// Runs `seconds` of control at `DT` with fresh operator input unless `enable` says
+/// otherwise; `target` is re-sent every period when `Some`.
+fn run(
+    w: &mut World,
+    s: &mut HandSupervisor,
+    seconds: f64,
+    target: Option<&SVector<f64, 17>>,
+    enable: &dyn Fn(f64) -> Option<EnableSample>,
+    alive: bool,
+) -> Vec<(HandCommand, Option<HoldReason>)> {
+    let mut out = Vec::new();
+    let steps = (seconds / DT).round() as usize;
+    for _ in 0..steps {
+        let t = w.time_s();
+        if let Some(q) = target {
+            s.accept_target(&target_msg(q), t).unwrap();
+        }
+        let step = s.step(t, enable(t), alive, &w.hand_state());
+        w.command_hand(&step.command);
+        w.step(DT);
+        out.push((step.command, step.hold));
+    }
+    out
+}
+
+fn max_effort(cmds: &[(HandCommand, Option<HoldReason>)]) -> f64 {
+    cmds.iter()
+        .map(|(c, _)| match c {
+            HandCommand::Effort(t) => t.amax(),
+            HandCommand::Position(_) => f64::INFINITY,
+        })
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn the_hand_starts_still_and_follows_only_with_targets_and_enable() {
+    let mut w = World::new(WorldConfig::default()).unwrap();
+    let mut s = supervisor();
+    // Fingers straight, palm sideways-free: hold what is measured, no target yet.
+    let q0 = w.hand_position_rad();
+    let out = run(&mut w, &mut s, 0.5, None, &enabled, true);
+    assert!(out.iter().all(|(_, h)| *h == Some(HoldReason::NoTarget)));
+    assert!(max_effort(&out) <= 1.0 + 1e-12, "hold effort capped");
+    let drift = (w.hand_position_rad() - q0).amax();
+    assert!(drift < 0.05, "the hand stayed (gravity sag only): {drift}");
+
+    // A target with the enable switch released: still holding.
+    let mut target = SVector::<f64, 17>::zeros();
+    target[finger_joint_index("rh_FFJ3").unwrap()] = 0.8;
+    target[finger_joint_index("rh_MFJ3").unwrap()] = 0.6;
+    let released = |t| {
+        Some(EnableSample {
+            received_s: t,
+            enable: false,
+        })
+    };
+    let before = w.hand_position_rad();
+    let out = run(&mut w, &mut s, 0.5, Some(&target), &released, true);
+    assert!(
+        out.iter()
+            .all(|(_, h)| *h == Some(HoldReason::EnableReleased))
+    );
+    assert!((w.hand_position_rad() - before).amax() < 0.05);
+
+    // Enable held: the hand follows.
+    let out = run(&mut w, &mut s, 1.5, Some(&target), &enabled, true);
+    assert!(out.last().unwrap().1.is_none());
+    let ff3 = w.hand_position_rad()[finger_joint_index("rh_FFJ3").unwrap()];
+    assert!((ff3 - 0.8).abs() < 0.05, "FFJ3 at {ff3}");
+}
+
+#[test]
+fn every_watchdog_path_holds_the_last_target_within_one_period() {
+    type Case = (&'static str, HoldReason);
+    let cases: [Case; 4] = [
+        ("stale target", HoldReason::StaleTarget),
+        ("enable released", HoldReason::EnableReleased),
+        ("operator input stale", HoldReason::StaleOperatorInput),
+        ("operator site lost", HoldReason::OperatorSiteLost),
+    ];
+    for (name, reason) in cases {
+        let mut w = World::new(WorldConfig::default()).unwrap();
+        let mut s = supervisor();
+        let mut target = SVector::<f64, 17>::zeros();
+        target[finger_joint_index("rh_FFJ3").unwrap()] = 0.8;
+        run(&mut w, &mut s, 1.0, Some(&target), &enabled, true);
+        assert_eq!(s.hold_reason_now(), None);
+        let t_fault = w.time_s();
+        // The fault starts now; targets keep flowing except for the stale-target case.
+        let fresh = (reason != HoldReason::StaleTarget).then_some(&target);
+        let enable = move |t: f64| match reason {
+            HoldReason::EnableReleased => Some(EnableSample {
+                received_s: t,
+                enable: false,
+            }),
+            HoldReason::StaleOperatorInput => enabled(t_fault),
+            _ => enabled(t),
+        };
+        let alive = reason != HoldReason::OperatorSiteLost;
+        let out = run(&mut w, &mut s, 1.0, fresh, &enable, alive);
+        // Immediate for the direct paths; after the timeout (0.2 s) plus one period for
+        // the stale ones.
+        let first_hold = out.iter().position(|(_, h)| h.is_some()).unwrap();
+        let allowed = match reason {
+            HoldReason::StaleTarget | HoldReason::StaleOperatorInput => {
+                (0.2 / DT).round() as usize + 1
+            }
+            _ => 0,
+        };
+        assert!(
+            first_hold <= allowed,
+            "{name}: held after {first_hold} periods"
+        );
+        assert!(
+            out[first_hold..].iter().all(|(_, h)| *h == Some(reason)),
+            "{name}"
+        );
+        assert!(
+            max_effort(&out[first_hold..]) <= 1.0 + 1e-12,
+            "{name}: capped"
+        );
+        // The hold keeps the last target's posture.
+        let ff3 = w.hand_position_rad()[finger_joint_index("rh_FFJ3").unwrap()];
+        assert!((ff3 - 0.8).abs() < 0.1, "{name}: FFJ3 at {ff3}");
+        let counters = s.named_counters();
+        let key = format!("hand.hold.{}", reason.name());
+        assert!(
+            counters.iter().any(|(k, n)| *k == key && *n > 0),
+            "{name}: {counters:?}"
+        );
+    }
+}
+
+#[test]
+fn a_grasp_is_kept_on_hold_with_capped_effort() {
+    let config = CupGraspConfig::default();
+    let mut w = World::cup_grasp(&config).unwrap();
+    let mut s = supervisor();
+    let closed = SVector::from(config.closed_posture_rad);
+    run(&mut w, &mut s, 2.0, Some(&closed), &enabled, true);
+    let before = w.fingertip_force_n();
+    assert!(
+        before.iter().filter(|f| **f > 0.2).count() >= 3,
+        "{before:?}"
+    );
+    // Targets stop (inference crashed).
+    let out = run(&mut w, &mut s, 2.0, None, &enabled, true);
+    assert_eq!(out.last().unwrap().1, Some(HoldReason::StaleTarget));
+    let after = w.fingertip_force_n();
+    println!("grasp before hold {before:.2?} N, after 2 s of hold {after:.2?} N");
+    assert!(
+        after.iter().filter(|f| **f > 0.2).count() >= 3,
+        "still held: {after:?}"
+    );
+    assert!(after[4] > 0.2, "the thumb still opposes: {after:?}");
+    let hold_cap = 1.0;
+    let held = &out[(0.2 / DT) as usize + 2..];
+    assert!(max_effort(held) <= hold_cap + 1e-12);
+    assert!(after.iter().sum::<f64>() <= before.iter().sum::<f64>() + 1e-6);
+}
+
+#[test]
+fn bad_targets_are_refused_by_name_and_change_nothing() {
+    let mut s = supervisor();
+    let good = SVector::<f64, 17>::repeat(0.1);
+    s.accept_target(&target_msg(&good), 0.0).unwrap();
+
+    let mut nan = good;
+    nan[3] = f64::NAN;
+    let e = s.accept_target(&target_msg(&nan), 0.1).unwrap_err();
+    assert!(e.to_string().contains(FINGER_JOINTS[3]), "{e}");
+    assert_eq!(e.kind(), "non_finite");
+
+    let mut far = good;
+    let j = finger_joint_index("rh_FFJ3").unwrap();
+    far[j] = 3.0;
+    let e = s.accept_target(&target_msg(&far), 0.1).unwrap_err();
+    assert!(matches!(
+        e,
+        TargetRejection::OutOfRange {
+            joint: "rh_FFJ3",
+            ..
+        }
+    ));
+
+    let mut missing = target_msg(&good);
+    missing.name.pop();
+    missing.position.pop();
+    assert_eq!(
+        s.accept_target(&missing, 0.1).unwrap_err().kind(),
+        "missing_joint"
+    );
+    let mut short = target_msg(&good);
+    short.position.pop();
+    assert_eq!(
+        s.accept_target(&short, 0.1).unwrap_err().kind(),
+        "malformed"
+    );
+
+    // Nothing changed.
+    assert_eq!(s.target_rad(), Some(&good));
+    let counters = s.named_counters();
+    for key in [
+        "hand.target_rejected.non_finite",
+        "hand.target_rejected.out_of_range",
+        "hand.target_rejected.missing_joint",
+        "hand.target_rejected.malformed",
+    ] {
+        assert!(
+            counters.iter().any(|(k, n)| k == key && *n == 1),
+            "{key}: {counters:?}"
+        );
+    }
+
+    // Slightly beyond a limit (inference noise): clamped to the limit.
+    let (lo, _) = HandSupervisor::shadow_hand_limits().unwrap();
+    let mut edge = good;
+    edge[j] = lo[j] - 0.05;
+    s.accept_target(&target_msg(&edge), 0.2).unwrap();
+    assert_eq!(s.target_rad().unwrap()[j], lo[j]);
+}
+
+#[test]
+fn a_non_finite_state_resends_the_previous_command_and_a_lost_hand_gets_a_position_hold() {
+    let mut w = World::new(WorldConfig::default()).unwrap();
+    let mut s = supervisor();
+    // Never saw the hand: nothing to send.
+    assert_eq!(s.hardware_lost(), None);
+    let target = SVector::<f64, 17>::repeat(0.2);
+    run(&mut w, &mut s, 0.2, Some(&target), &enabled, true);
+    let t = w.time_s();
+    let good = s.step(t, enabled(t), true, &w.hand_state());
+    let mut bad = w.hand_state();
+    bad.position_rad[0] = f64::NAN;
+    let again = s.step(t + DT, enabled(t + DT), true, &bad);
+    assert_eq!(again.command, good.command);
+    assert!(
+        s.named_counters()
+            .iter()
+            .any(|(k, n)| k == "hand.state_rejected" && *n == 1)
+    );
+    match s.hardware_lost() {
+        Some(HandCommand::Position(q)) => assert_eq!(q, target),
+        other => panic!("{other:?}"),
+    }
+}
