@@ -5,7 +5,7 @@
 //! operator site, each at most `camera_rate_hz`, newest frame only: frames that arrive
 //! faster are dropped and counted, never queued.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use serde::{Deserialize, Serialize};
 use teleop_bus::{Bus, BusConfig, NodeConfig, StatusReporter, topics};
@@ -26,7 +26,8 @@ pub struct FeedbackConfig {
     /// Hardware state older than this is not forwarded, s.
     pub hardware_timeout_s: f64,
     /// Highest rate at which each camera view is forwarded, Hz, in [0, 60]; 0 forwards
-    /// no camera images.
+    /// no camera images. New frames are looked for at `rate_hz` and forwarded on
+    /// arrival within this limit.
     pub camera_rate_hz: f64,
     pub bus: BusConfig,
 }
@@ -96,17 +97,16 @@ pub async fn run(cfg: FeedbackConfig, duration: Option<Duration>) -> anyhow::Res
                 camera: BusCamera::monitor(&bus, &from).await?,
                 publisher: bus.publisher(&to).await?,
                 forwarded: 0,
+                // 10 % below the period: frames arriving at exactly the limit's rate
+                // (with jitter) all pass.
+                min_interval: Duration::from_secs_f64(0.9 / cfg.camera_rate_hz),
+                last_sent: None,
             });
         }
     }
     let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / cfg.rate_hz));
     tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let mut status_tick = tokio::time::interval(Duration::from_secs(1));
-    // With cameras off (rate 0) this never ticks; the fallback only avoids 1 / 0.
-    let camera_period =
-        Duration::try_from_secs_f64(1.0 / cfg.camera_rate_hz).unwrap_or(Duration::from_secs(1));
-    let mut camera_tick = tokio::time::interval(camera_period);
-    camera_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let stop = teleop_bus::node::stop_signal(duration);
     tokio::pin!(stop);
     let (mut arm_sent, mut hand_sent, mut missing) = (0u64, 0u64, 0u64);
@@ -147,10 +147,11 @@ pub async fn run(cfg: FeedbackConfig, duration: Option<Duration>) -> anyhow::Res
                     }
                     Err(e) => { missing += 1; last_error = e.to_string(); }
                 }
-            }
-            _ = camera_tick.tick(), if !cameras.is_empty() => {
+                // Cameras are checked at this (faster) rate and forwarded on arrival,
+                // rate-limited, so a 15 Hz camera is not aliased by a 15 Hz poll.
+                let now = Instant::now();
                 for c in &mut cameras {
-                    if let Err(e) = c.forward() {
+                    if let Err(e) = c.forward(now) {
                         last_error = format!("camera {}: {e}", c.name);
                     }
                 }
@@ -169,15 +170,27 @@ struct CameraForward {
     camera: BusCamera,
     publisher: teleop_bus::Publisher<teleop_msgs::Image>,
     forwarded: u64,
+    /// Shortest time between two forwarded frames.
+    min_interval: Duration,
+    last_sent: Option<Instant>,
 }
 
 impl CameraForward {
-    /// Sends the newest image since the last call, if any, as it came (stamp and frame
-    /// of the camera).
-    fn forward(&mut self) -> anyhow::Result<()> {
+    /// Sends the newest image since the last forwarded one, if any and if the rate
+    /// limit allows, as it came (stamp and frame of the camera). While the limit holds
+    /// frames back they wait in the newest-only subscription (older ones are dropped
+    /// and counted there).
+    fn forward(&mut self, now: Instant) -> anyhow::Result<()> {
+        if self
+            .last_sent
+            .is_some_and(|t| now.duration_since(t) < self.min_interval)
+        {
+            return Ok(());
+        }
         if let Some(image) = self.camera.latest()? {
             self.publisher.put(&image)?;
             self.forwarded += 1;
+            self.last_sent = Some(now);
         }
         Ok(())
     }

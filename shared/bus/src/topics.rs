@@ -313,7 +313,7 @@ pub const SIM_HAND_TACTILE: Topic<FingertipPressures> = Topic::new(
 pub const SIM_HAND_COMMAND: Topic<JointState> = Topic::new(
     "teleop/hw/shadow_hand/command",
     RemoteInternal,
-    100.0,
+    500.0,
     Q::Control,
     Some(100),
     "Hand hardware command: 17 finger joints, either `effort` (N m) or `position` (rad)",
