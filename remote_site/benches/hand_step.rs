@@ -1,7 +1,8 @@
 //! One Shadow hand control period at the robot site, 17 finger joints, adaptive mode:
-//! the supervisor (target message check + watchdog + control law) against the bare
-//! control law in the same run, on states recorded from the simulated hand closing
-//! on the cup (so contacts, errors and adaptation are realistic).
+//! the supervisor (target message check + watchdog + gravity compensation from the
+//! URDF masses + control law) against the bare control law in the same run, on states
+//! recorded from the simulated hand closing on the cup (so contacts, errors and
+//! adaptation are realistic).
 //!
 //! `cargo bench -p teleop-remote-site --bench hand_step`
 
@@ -44,6 +45,7 @@ fn main() {
         ..Default::default()
     };
     let (lo, hi) = HandSupervisor::shadow_hand_limits().unwrap();
+    let arm = SVector::<f64, 7>::from(config.arm_posture_rad);
     println!("| step (17 joints, adaptive) | periods | p50 | p99 |\n|---|---|---|---|");
     for round in 0..2 {
         let mut sup = HandSupervisor::new(HandSupervisorConfig::default(), lo, hi).unwrap();
@@ -63,7 +65,7 @@ fn main() {
                 enable: true,
             });
             let t0 = Instant::now();
-            let out = sup.step(t, enable, true, s);
+            let out = sup.step(t, enable, true, s, Some(&arm));
             t_sup.push(t0.elapsed().as_secs_f64() * 1e6);
             std::hint::black_box(out);
             let t0 = Instant::now();
@@ -76,7 +78,10 @@ fn main() {
         }
         let n = states.len();
         for (name, v) in [
-            ("supervisor step (watchdog + law)", &mut t_sup),
+            (
+                "supervisor step (watchdog + gravity model + law)",
+                &mut t_sup,
+            ),
             ("target message check (by name, limits)", &mut t_target),
             ("baseline: bare adaptive law", &mut t_bare),
         ] {

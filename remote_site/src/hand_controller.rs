@@ -24,15 +24,19 @@
 //!   ([`HandSupervisor::hardware_lost`]), or sends nothing if it never saw the hand.
 //! * **Bad state.** A non-finite measured state is refused by the control law (counted);
 //!   the previous command is sent again.
+//! * **Gravity.** Every law adds the gravity compensation `G(q)` of eq. 8.2, computed
+//!   from the URDF masses with the hand posed by the measured arm
+//!   ([`crate::hand_gravity`]); without an arm posture it adds none (counted).
 
 use std::collections::BTreeMap;
 
 use nalgebra::SVector;
 use serde::{Deserialize, Serialize};
 use teleop_control::ConfigError;
-use teleop_control::hand::{HandControllerConfig, HandMode, ShadowHandController};
+use teleop_control::hand::{HandControllerConfig, HandMode, JointInput, ShadowHandController};
 use teleop_msgs::JointState;
 
+use crate::hand_gravity::HandGravity;
 use crate::hardware::{FINGER_JOINTS, HandCommand, HandState};
 use crate::wire::{self, WireError};
 
@@ -52,6 +56,11 @@ pub struct HandSupervisorConfig {
     /// Targets beyond a joint limit by at most this much are clamped to it; further
     /// out they are refused, rad. Default 0.1.
     pub target_limit_margin_rad: f64,
+    /// Compensate gravity on the fingers (the `G` of eq. 8.2) from the URDF masses,
+    /// with the hand posed by the measured arm. Default true.
+    pub gravity_compensation: bool,
+    /// Gravity in the PR2 `base_link` frame, m/s^2. Default `[0, 0, -9.81]`.
+    pub gravity_m_s2: [f64; 3],
     /// The control laws, their gains and effort limits.
     pub controller: HandControllerConfig<17>,
 }
@@ -63,6 +72,8 @@ impl Default for HandSupervisorConfig {
             command_timeout_s: 0.2,
             input_timeout_s: 0.2,
             target_limit_margin_rad: 0.1,
+            gravity_compensation: true,
+            gravity_m_s2: [0.0, 0.0, -9.81],
             controller: HandControllerConfig::default(),
         }
     }
@@ -92,10 +103,27 @@ impl HandSupervisorConfig {
                 "target_limit_margin_rad must be in [0, 0.5], got {m}"
             ));
         }
+        let g = nalgebra::Vector3::from(self.gravity_m_s2);
+        if !(g.iter().all(|x| x.is_finite()) && g.norm() <= 20.0) {
+            return Err(format!(
+                "gravity_m_s2 must be finite with a norm <= 20, got {:?}",
+                self.gravity_m_s2
+            ));
+        }
         self.controller
             .validate()
             .map_err(|e| format!("controller: {e}"))
     }
+}
+
+/// Why a supervisor could not be built.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SupervisorError {
+    #[error("hand controller config: {0}")]
+    Config(#[from] ConfigError),
+    #[error("robot model for gravity compensation: {0}")]
+    Model(#[from] teleop_kinematics::KinematicsError),
 }
 
 /// Why a target message was refused.
@@ -177,6 +205,8 @@ pub struct HandStep {
 pub struct HandSupervisor {
     config: HandSupervisorConfig,
     controller: ShadowHandController,
+    gravity: Option<HandGravity>,
+    gravity_unknown: u64,
     lower: SVector<f64, 17>,
     upper: SVector<f64, 17>,
     target: Option<(SVector<f64, 17>, f64)>,
@@ -194,14 +224,22 @@ impl HandSupervisor {
     /// order), holding until the first target.
     ///
     /// # Errors
-    /// The control laws' configuration errors.
+    /// The control laws' configuration errors; the robot model's, for gravity
+    /// compensation.
     pub fn new(
         config: HandSupervisorConfig,
         lower_rad: SVector<f64, 17>,
         upper_rad: SVector<f64, 17>,
-    ) -> Result<Self, ConfigError> {
+    ) -> Result<Self, SupervisorError> {
+        let gravity = if config.gravity_compensation {
+            Some(HandGravity::new(config.gravity_m_s2.into())?)
+        } else {
+            None
+        };
         Ok(Self {
             controller: ShadowHandController::new(config.controller)?,
+            gravity,
+            gravity_unknown: 0,
             config,
             lower: lower_rad,
             upper: upper_rad,
@@ -277,13 +315,16 @@ impl HandSupervisor {
     }
 
     /// One control period at `now_s` with the operator's enable switch, the operator
-    /// site's liveliness and the measured hand state.
+    /// site's liveliness, the measured hand state and the measured arm posture (for
+    /// gravity compensation: without it, none is applied and the period is counted as
+    /// `hand.gravity_unknown`).
     pub fn step(
         &mut self,
         now_s: f64,
         enable: Option<EnableSample>,
         operator_site_alive: bool,
         state: &HandState,
+        arm_position_rad: Option<&SVector<f64, 7>>,
     ) -> HandStep {
         let nominal = 1.0 / self.config.rate_hz;
         let dt = match self.last_step_s {
@@ -302,14 +343,28 @@ impl HandSupervisor {
             tracing::info!("hand follows the operator's targets");
         }
         self.last_hold = hold;
-        let out = match (hold, self.target) {
-            (None, Some((target, _))) => {
-                self.controller
-                    .step(dt, &state.position_rad, &state.velocity_rad_s, &target)
+        let gravity = match (&mut self.gravity, arm_position_rad) {
+            (Some(model), Some(arm)) if arm.iter().all(|x| x.is_finite()) => {
+                model.compensation_nm(arm, &state.position_rad)
             }
-            _ => self
-                .controller
-                .hold(dt, &state.position_rad, &state.velocity_rad_s),
+            (Some(_), _) => {
+                self.gravity_unknown += 1;
+                SVector::zeros()
+            }
+            (None, _) => SVector::zeros(),
+        };
+        let out = match (hold, self.target) {
+            (None, Some((target, _))) => self.controller.step_input(
+                dt,
+                &JointInput::new(state.position_rad, state.velocity_rad_s, target)
+                    .with_gravity(gravity),
+            ),
+            _ => self.controller.hold_with_gravity(
+                dt,
+                &state.position_rad,
+                &state.velocity_rad_s,
+                &gravity,
+            ),
         };
         let command = match out {
             Ok(o) => o.into(),
@@ -383,6 +438,7 @@ impl HandSupervisor {
             ("hand.steps".to_owned(), self.steps),
             ("hand.targets_accepted".to_owned(), self.targets_accepted),
             ("hand.state_rejected".to_owned(), self.state_rejections),
+            ("hand.gravity_unknown".to_owned(), self.gravity_unknown),
         ];
         for (k, n) in &self.targets_rejected {
             out.push((format!("hand.target_rejected.{k}"), *n));

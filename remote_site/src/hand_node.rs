@@ -9,9 +9,9 @@ use teleop_bus::{Bus, BusConfig, NodeConfig, StatusReporter, topics};
 use teleop_msgs::{Lifecycle, unix_seconds_now as now_s};
 use tokio::time::MissedTickBehavior;
 
-use crate::bus_hardware::BusHand;
+use crate::bus_hardware::{BusArm, BusHand};
 use crate::hand_controller::{EnableSample, HandSupervisor, HandSupervisorConfig};
-use crate::hardware::HandHardware;
+use crate::hardware::{ArmHardware, HandHardware};
 
 /// Configuration of the `shadow_hand_controller` node.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -62,6 +62,9 @@ pub async fn run(cfg: HandNodeConfig, duration: Option<Duration>) -> anyhow::Res
     let watch = bus.watch_nodes().await?;
     let status = StatusReporter::new(&bus).await?;
     let mut hw = BusHand::new(&bus, cfg.hardware_timeout_s).await?;
+    // The arm's posture orients the hand for gravity compensation (read-only).
+    let mut arm = BusArm::monitor(&bus, cfg.hardware_timeout_s).await?;
+    let mut arm_position: Option<nalgebra::SVector<f64, 7>> = None;
     let (lower, upper) = HandSupervisor::shadow_hand_limits()?;
     let mut hand = HandSupervisor::new(cfg.hand, lower, upper)?;
     tracing::info!(node = %cfg.node_name, rate_hz = cfg.hand.rate_hz, mode = ?hand.mode(),
@@ -99,9 +102,16 @@ pub async fn run(cfg: HandNodeConfig, duration: Option<Duration>) -> anyhow::Res
                     enable = Some(EnableSample { received_s: r.receive_time_s(), enable: r.msg.enable });
                 }
                 let alive = cfg.operator_site_nodes.iter().any(|n| watch.is_alive(n));
+                if cfg.hand.gravity_compensation {
+                    // A stale arm state keeps the last posture: the hand's orientation
+                    // changes only with the arm, and the arm stops on its own.
+                    if let Ok(a) = arm.read() {
+                        arm_position = Some(a.position_rad);
+                    }
+                }
                 match hw.read() {
                     Ok(state) => {
-                        let out = hand.step(now_s(), enable, alive, &state);
+                        let out = hand.step(now_s(), enable, alive, &state, arm_position.as_ref());
                         if let Err(e) = hw.write(&out.command) {
                             hardware_errors += 1;
                             last_error = e.to_string();
@@ -119,7 +129,7 @@ pub async fn run(cfg: HandNodeConfig, duration: Option<Duration>) -> anyhow::Res
         }
     }
     let _ = status.report(Lifecycle::Finalized, &hand.named_counters(), &last_error);
-    drop((target_sub, input_sub, watch, status, hw));
+    drop((target_sub, input_sub, watch, status, hw, arm));
     bus.close().await?;
     Ok(())
 }

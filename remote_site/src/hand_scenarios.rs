@@ -10,8 +10,9 @@
 use nalgebra::{Point3, SVector};
 use teleop_control::ConfigError;
 use teleop_control::Rejection;
-use teleop_control::hand::{HandControllerConfig, HandOutput, ShadowHandController};
+use teleop_control::hand::{HandControllerConfig, HandOutput, JointInput, ShadowHandController};
 
+use crate::hand_gravity::HandGravity;
 use crate::hardware::{FINGER_JOINTS, HandCommand};
 use crate::sim::{CupGraspConfig, SimError, TouchingTaskConfig, World};
 
@@ -36,6 +37,8 @@ pub enum ScenarioError {
     Rejected(#[from] Rejection),
     #[error("unknown finger joint {0:?}")]
     UnknownJoint(String),
+    #[error("robot model: {0}")]
+    Model(#[from] teleop_kinematics::KinematicsError),
 }
 
 /// Index of a finger joint in [`FINGER_JOINTS`] order.
@@ -49,19 +52,23 @@ pub fn finger_joint_index(name: &str) -> Result<usize, ScenarioError> {
         .ok_or_else(|| ScenarioError::UnknownJoint(name.to_owned()))
 }
 
-/// One control period: read the simulated hand, step the controller toward `target`,
-/// command, advance the world by `dt_s`.
+/// One control period: read the simulated hand, step the controller toward `target`
+/// with gravity compensation (as the `shadow_hand_controller` node does), command,
+/// advance the world by `dt_s`.
 ///
 /// # Errors
 /// [`ScenarioError::Rejected`] if the controller refuses the input.
 pub fn control_step(
     world: &mut World,
     controller: &mut ShadowHandController,
+    gravity: &mut HandGravity,
     target_rad: &SVector<f64, 17>,
     dt_s: f64,
 ) -> Result<(), ScenarioError> {
     let s = world.hand_state();
-    let out = controller.step(dt_s, &s.position_rad, &s.velocity_rad_s, target_rad)?;
+    let g = gravity.compensation_nm(&world.arm_position_rad(), &s.position_rad);
+    let input = JointInput::new(s.position_rad, s.velocity_rad_s, *target_rad).with_gravity(g);
+    let out = controller.step_input(dt_s, &input)?;
     world.command_hand(&out.into());
     world.step(dt_s);
     Ok(())
@@ -122,6 +129,7 @@ pub fn touching_trial(
 ) -> Result<TouchTrial, ScenarioError> {
     let mut world = World::touching_task(&run.task)?;
     let mut ctrl = ShadowHandController::new(*controller)?;
+    let mut gravity = HandGravity::new(run.task.world.gravity_m_s2.into())?;
     let finger = crate::hardware::FINGERTIPS
         .iter()
         .position(|f| *f == run.task.finger)
@@ -144,7 +152,7 @@ pub fn touching_trial(
     let (mut max, mut sum, mut n) = (0.0_f64, 0.0, 0u32);
     let (mut point_sum, mut points) = (nalgebra::Vector3::zeros(), 0u32);
     while world.time_s() < run.duration_s - 1e-9 {
-        control_step(&mut world, &mut ctrl, &target, run.dt_s)?;
+        control_step(&mut world, &mut ctrl, &mut gravity, &target, run.dt_s)?;
         if world.time_s() >= run.settle_s {
             let f = world.fingertip_force_n()[finger];
             max = max.max(f);
@@ -276,12 +284,13 @@ pub fn grasp_run(
 ) -> Result<Vec<GraspSample>, ScenarioError> {
     let mut world = World::cup_grasp(&run.cup)?;
     let mut ctrl = ShadowHandController::new(*controller)?;
+    let mut gravity = HandGravity::new(run.cup.world.gravity_m_s2.into())?;
     let j = finger_joint_index(&run.traced_joint)?;
     let target = SVector::<f64, 17>::from(run.cup.closed_posture_rad);
     let mut samples = Vec::new();
     let mut step = 0usize;
     while world.time_s() < run.duration_s - 1e-9 {
-        control_step(&mut world, &mut ctrl, &target, run.dt_s)?;
+        control_step(&mut world, &mut ctrl, &mut gravity, &target, run.dt_s)?;
         step += 1;
         if step.is_multiple_of(run.sample_every.max(1)) {
             let s = world.hand_state();

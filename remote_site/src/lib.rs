@@ -5,6 +5,7 @@ pub mod arm_node;
 pub mod bus_hardware;
 pub mod feedback_node;
 pub mod hand_controller;
+pub mod hand_gravity;
 pub mod hand_node;
 pub mod hand_scenarios;
 pub mod hardware;

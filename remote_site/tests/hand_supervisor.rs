@@ -51,7 +51,8 @@ fn run(
         if let Some(q) = target {
             s.accept_target(&target_msg(q), t).unwrap();
         }
-        let step = s.step(t, enable(t), alive, &w.hand_state());
+        let arm = w.arm_position_rad();
+        let step = s.step(t, enable(t), alive, &w.hand_state(), Some(&arm));
         w.command_hand(&step.command);
         w.step(DT);
         out.push((step.command, step.hold));
@@ -265,10 +266,11 @@ fn a_non_finite_state_resends_the_previous_command_and_a_lost_hand_gets_a_positi
     let target = SVector::<f64, 17>::repeat(0.2);
     run(&mut w, &mut s, 0.2, Some(&target), &enabled, true);
     let t = w.time_s();
-    let good = s.step(t, enabled(t), true, &w.hand_state());
+    let arm = w.arm_position_rad();
+    let good = s.step(t, enabled(t), true, &w.hand_state(), Some(&arm));
     let mut bad = w.hand_state();
     bad.position_rad[0] = f64::NAN;
-    let again = s.step(t + DT, enabled(t + DT), true, &bad);
+    let again = s.step(t + DT, enabled(t + DT), true, &bad, Some(&arm));
     assert_eq!(again.command, good.command);
     assert!(
         s.named_counters()

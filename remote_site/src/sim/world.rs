@@ -11,6 +11,7 @@ use super::config::WorldConfig;
 use super::error::SimError;
 use super::geometry::{Capsule, capsule_distance, penetration};
 use super::objects::{ExternalLoad, LoadTarget, Object, ResolvedTarget};
+use crate::hand_gravity::{MassLink, add_finger_gravity, finger_masses};
 use crate::hardware::{ARM_JOINTS, ArmState, FINGER_JOINTS, FINGERTIPS, HandCommand, HandState};
 
 /// Finger links by fingertip ([`FINGERTIPS`] order): the BioTac is the distal link.
@@ -54,16 +55,6 @@ struct LinkCapsule {
     fingertip: Option<usize>,
     /// Robot DoF indices moving the link (arm and hand).
     dofs: Vec<usize>,
-}
-
-/// A link with mass carried by at least one finger joint.
-#[derive(Debug, Clone)]
-struct MassLink {
-    link: LinkId,
-    mass_kg: f64,
-    com_local: Point3<f64>,
-    /// Hand joint indices ([`FINGER_JOINTS`] order) moving the link.
-    hand_joints: Vec<usize>,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -174,25 +165,16 @@ impl World {
         let palm = robot.link_id(robots::pr2::WRIST)?;
 
         // Links moved by finger joints: their masses and collision capsules.
+        let masses = finger_masses(&robot, &dof_hand);
         let mut capsules = Vec::new();
-        let mut masses = Vec::new();
         for (index, link) in robot.links().iter().enumerate() {
             let Ok(id) = robot.link_id(&link.name) else {
                 continue;
             };
             debug_assert_eq!(id.index(), index);
             let dofs = robot.dofs_moving(id);
-            let hand_joints: Vec<usize> = dofs.iter().filter_map(|&d| dof_hand[d]).collect();
-            if hand_joints.is_empty() {
+            if !dofs.iter().any(|&d| dof_hand[d].is_some()) {
                 continue;
-            }
-            if let Some(inertial) = link.inertial {
-                masses.push(MassLink {
-                    link: id,
-                    mass_kg: inertial.mass_kg,
-                    com_local: Point3::from(inertial.origin.translation.vector),
-                    hand_joints: hand_joints.clone(),
-                });
             }
             let fingertip = distal.iter().position(|&d| d == id);
             let mut locals: Vec<Capsule> = Vec::new();
@@ -542,16 +524,15 @@ impl World {
         }
 
         // Gravity on every finger link.
-        let frames = self.kin.dof_frames();
-        for m in &self.masses {
-            let com = self.robot.link_pose(&self.kin, m.link) * m.com_local;
-            let weight = self.gravity * m.mass_kg;
-            for &j in &m.hand_joints {
-                let frame = &frames[self.hand_dof[j]];
-                let axis = frame.rotation * self.hand_axis_local[j];
-                force[j] += weight.dot(&axis.cross(&(com.coords - frame.translation.vector)));
-            }
-        }
+        add_finger_gravity(
+            &self.robot,
+            &self.kin,
+            &self.masses,
+            &self.hand_dof,
+            &self.hand_axis_local,
+            &self.gravity,
+            &mut force,
+        );
 
         // Contacts.
         self.contacts.clear();

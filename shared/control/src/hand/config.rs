@@ -355,7 +355,7 @@ pub struct AdaptiveConfig<const N: usize> {
     /// rather than zero. Default 1/s (ours): without it (`0`, the law as printed)
     /// `K_s`, `K_d` and `v` can only ratchet up on a lasting contact (see the
     /// [module docs](super::adaptive)); on the simulated touching task the printed law
-    /// peaks at 0.53x the position mode's force, 1/s at 0.42x
+    /// peaks at 0.52x the position mode's force, 1/s at 0.41x
     /// (`remote_site/tests/scenario_touching.rs`).
     #[serde(default = "adaptive_forgetting_rate_per_s")]
     pub forgetting_rate_per_s: PerJoint<N>,
