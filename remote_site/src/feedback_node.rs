@@ -124,6 +124,7 @@ pub async fn run(cfg: FeedbackConfig, duration: Option<Duration>) -> anyhow::Res
                     let name = |what| format!("feedback.camera_{}.{what}", c.name);
                     counters.push((name("forwarded"), c.forwarded));
                     counters.push((name("dropped"), c.camera.dropped()));
+                    counters.push((name("bad"), c.camera.bad_images()));
                 }
                 let _ = status.report(Lifecycle::Active, &counters, &last_error);
             }

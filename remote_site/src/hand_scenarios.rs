@@ -13,7 +13,7 @@ use teleop_control::Rejection;
 use teleop_control::hand::{HandControllerConfig, HandOutput, JointInput, ShadowHandController};
 
 use crate::hand_gravity::HandGravity;
-use crate::hardware::{FINGER_JOINTS, HandCommand};
+use crate::hardware::{FINGER_JOINTS, FINGERTIPS, FLEXION_JOINTS, HandCommand};
 use crate::sim::{CupGraspConfig, SimError, TouchingTaskConfig, World};
 
 impl From<HandOutput<17>> for HandCommand {
@@ -130,17 +130,12 @@ pub fn touching_trial(
     let mut world = World::touching_task(&run.task)?;
     let mut ctrl = ShadowHandController::new(*controller)?;
     let mut gravity = HandGravity::new(run.task.world.gravity_m_s2.into())?;
-    let finger = crate::hardware::FINGERTIPS
+    // `World::touching_task` has refused an unknown finger already.
+    let finger = FINGERTIPS
         .iter()
         .position(|f| *f == run.task.finger)
         .unwrap_or(0);
-    let (j3, j2) = match finger {
-        1 => ("rh_MFJ3", "rh_MFJ2"),
-        2 => ("rh_RFJ3", "rh_RFJ2"),
-        3 => ("rh_LFJ3", "rh_LFJ2"),
-        4 => ("rh_THJ4", "rh_THJ2"),
-        _ => ("rh_FFJ3", "rh_FFJ2"),
-    };
+    let [j3, j2] = FLEXION_JOINTS[finger];
     let (j3, j2) = (finger_joint_index(j3)?, finger_joint_index(j2)?);
     let mut target = SVector::<f64, 17>::from(run.task.hand_posture_rad);
     // Trial counts are small.

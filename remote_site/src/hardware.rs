@@ -24,6 +24,16 @@ pub const FINGER_JOINTS: [&str; 17] = [
 /// Fingertip order of tactile readings.
 pub const FINGERTIPS: [&str; 5] = ["ff", "mf", "rf", "lf", "th"];
 
+/// The two flexion joints of each finger ([`FINGERTIPS`] order) that curl it toward
+/// the palm: J3 and J2, for the thumb THJ4 and THJ2.
+pub const FLEXION_JOINTS: [[&str; 2]; 5] = [
+    ["rh_FFJ3", "rh_FFJ2"],
+    ["rh_MFJ3", "rh_MFJ2"],
+    ["rh_RFJ3", "rh_RFJ2"],
+    ["rh_LFJ3", "rh_LFJ2"],
+    ["rh_THJ4", "rh_THJ2"],
+];
+
 /// Measured state of the arm (7 joints).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ArmState {

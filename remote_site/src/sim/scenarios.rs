@@ -10,7 +10,7 @@ use super::error::SimError;
 use super::geometry::{Capsule, capsule_distance};
 use super::objects::{ExternalLoad, Object, ObjectShape};
 use super::world::World;
-use crate::hardware::{FINGER_JOINTS, FINGERTIPS};
+use crate::hardware::{FINGER_JOINTS, FINGERTIPS, FLEXION_JOINTS};
 
 /// Finger posture helper: `(joint name, rad)` pairs on a zero posture.
 fn posture(pairs: &[(&str, f64)]) -> [f64; 17] {
@@ -317,21 +317,10 @@ impl World {
     /// Unit direction the fingertip moves in when its finger's two flexion joints
     /// (J3 and J2; thumb: THJ4 and THJ2) turn together, at the current posture.
     fn flexion_direction(&self, finger: usize) -> Result<Vector3<f64>, SimError> {
-        let names: [&str; 2] = match finger {
-            0 => ["rh_FFJ3", "rh_FFJ2"],
-            1 => ["rh_MFJ3", "rh_MFJ2"],
-            2 => ["rh_RFJ3", "rh_RFJ2"],
-            3 => ["rh_LFJ3", "rh_LFJ2"],
-            _ => ["rh_THJ4", "rh_THJ2"],
-        };
+        let last = FLEXION_JOINTS.len() - 1;
+        let names = FLEXION_JOINTS[finger.min(last)];
         let robot = self.robot();
-        let tip_link = robot.link_id(match finger {
-            0 => "rh_fftip",
-            1 => "rh_mftip",
-            2 => "rh_rftip",
-            3 => "rh_lftip",
-            _ => "rh_thtip",
-        })?;
+        let tip_link = robot.link_id(super::world::TIP_FRAMES[finger.min(last)])?;
         let mut jac = nalgebra::Matrix6xX::zeros(robot.dof());
         robot.link_jacobian_into(
             self.kinematic_state(),

@@ -23,7 +23,8 @@ const DISTAL_LINKS: [&str; 5] = [
     "rh_thdistal",
 ];
 /// Fingertip frames ([`FINGERTIPS`] order).
-const TIP_FRAMES: [&str; 5] = ["rh_fftip", "rh_mftip", "rh_rftip", "rh_lftip", "rh_thtip"];
+pub(super) const TIP_FRAMES: [&str; 5] =
+    ["rh_fftip", "rh_mftip", "rh_rftip", "rh_lftip", "rh_thtip"];
 
 /// One contact of the last step, in the world (PR2 `base_link`) frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
