@@ -4,9 +4,9 @@
 
 use std::path::Path;
 
-use teleop_bus::NodeConfig;
-use teleop_bus::config::{load_toml, parse_toml};
 use teleop_local_site::wrist_tracker::WristTrackerConfig;
+use teleop_node::NodeConfig;
+use teleop_node::config::{load_toml, parse_toml};
 use teleop_remote_site::arm_node::ArmNodeConfig;
 use teleop_remote_site::feedback_node::FeedbackConfig;
 use teleop_remote_site::hand_node::HandNodeConfig;
@@ -14,62 +14,91 @@ use teleop_remote_site::sim_node::SimNodeConfig;
 use teleop_system_tests::repo_root;
 
 fn check<C: NodeConfig>(path: &Path) {
-    let cfg: C = load_toml(path).unwrap_or_else(|e| panic!("{e}"));
-    cfg.validate()
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    teleop_node::config::load_checked::<C>(path).unwrap_or_else(|e| panic!("{e}"));
 }
 
-/// Node name (file stem) -> checker. A shipped config with no entry fails the test, so
-/// no file escapes checking.
-fn checker(stem: &str) -> Option<fn(&Path)> {
+fn equals_default<C: NodeConfig + PartialEq + std::fmt::Debug>(path: &Path) {
+    let shipped: C = load_toml(path).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(
+        shipped,
+        C::default(),
+        "{} is not the defaults; regenerate it with `<node> --show-default-config`",
+        path.display()
+    );
+}
+
+/// Node name (file stem) -> (parse and validate, compare with the defaults). A config
+/// file with no entry fails the test, so no file escapes checking.
+fn checker(stem: &str) -> Option<(fn(&Path), fn(&Path))> {
     match stem {
-        "wrist_tracker" => Some(check::<WristTrackerConfig>),
-        "pr2_arm_controller" => Some(check::<ArmNodeConfig>),
-        "remote_sim" => Some(check::<SimNodeConfig>),
-        "feedback_publisher" => Some(check::<FeedbackConfig>),
-        "shadow_hand_controller" => Some(check::<HandNodeConfig>),
+        "wrist_tracker" => Some((
+            check::<WristTrackerConfig>,
+            equals_default::<WristTrackerConfig>,
+        )),
+        "pr2_arm_controller" => Some((check::<ArmNodeConfig>, equals_default::<ArmNodeConfig>)),
+        "remote_sim" => Some((check::<SimNodeConfig>, equals_default::<SimNodeConfig>)),
+        "feedback_publisher" => Some((check::<FeedbackConfig>, equals_default::<FeedbackConfig>)),
+        "shadow_hand_controller" => {
+            Some((check::<HandNodeConfig>, equals_default::<HandNodeConfig>))
+        }
         _ => None,
     }
 }
 
-#[test]
-fn every_shipped_config_parses_and_validates() {
-    let mut checked = 0;
-    let mut stack = vec![repo_root().join("deploy")];
+fn toml_files(dir: &Path) -> Vec<std::path::PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_owned()];
     while let Some(dir) = stack.pop() {
         for entry in std::fs::read_dir(&dir).unwrap() {
             let path = entry.unwrap().path();
             if path.is_dir() {
                 stack.push(path);
             } else if path.extension().is_some_and(|e| e == "toml") {
-                let stem = path.file_stem().unwrap().to_string_lossy().to_string();
-                let f = checker(&stem)
-                    .unwrap_or_else(|| panic!("no config type known for {}", path.display()));
-                f(&path);
-                checked += 1;
+                out.push(path);
             }
         }
     }
-    assert!(checked >= 1, "no config files found under deploy/");
+    out.sort();
+    out
 }
 
+fn stem(path: &Path) -> String {
+    path.file_stem().unwrap().to_string_lossy().to_string()
+}
+
+/// Every config file shipped under `deploy/` (per-machine files may differ from the
+/// defaults) parses with unknown fields refused and passes validation.
 #[test]
-fn shipped_defaults_equal_built_in_defaults() {
-    let path = repo_root().join("deploy/config/wrist_tracker.toml");
-    let shipped: WristTrackerConfig = load_toml(&path).unwrap();
-    assert_eq!(shipped, WristTrackerConfig::default());
-    let path = repo_root().join("deploy/config/pr2_arm_controller.toml");
-    let shipped: ArmNodeConfig = load_toml(&path).unwrap();
-    assert_eq!(shipped, ArmNodeConfig::default());
-    let path = repo_root().join("deploy/config/remote_sim.toml");
-    let shipped: SimNodeConfig = load_toml(&path).unwrap();
-    assert_eq!(shipped, SimNodeConfig::default());
-    let path = repo_root().join("deploy/config/feedback_publisher.toml");
-    let shipped: FeedbackConfig = load_toml(&path).unwrap();
-    assert_eq!(shipped, FeedbackConfig::default());
-    let path = repo_root().join("deploy/config/shadow_hand_controller.toml");
-    let shipped: HandNodeConfig = load_toml(&path).unwrap();
-    assert_eq!(shipped, HandNodeConfig::default());
+fn every_shipped_config_parses_and_validates() {
+    let files = toml_files(&repo_root().join("deploy"));
+    for path in &files {
+        let (parse, _) = checker(&stem(path))
+            .unwrap_or_else(|| panic!("no config type known for {}", path.display()));
+        parse(path);
+    }
+    assert!(files.len() >= teleop_interfaces::nodes::NODES.len());
+}
+
+/// Every node of the node table has its config file where the table says.
+#[test]
+fn the_node_table_names_existing_configs() {
+    for node in teleop_interfaces::nodes::NODES {
+        let path = repo_root().join(node.config);
+        assert!(path.is_file(), "{} missing", path.display());
+        assert!(checker(node.name).is_some(), "{} has no checker", node.name);
+    }
+}
+
+/// `deploy/defaults/` holds each node's defaults as `--show-default-config` prints
+/// them: an example to start a machine's file from.
+#[test]
+fn defaults_examples_equal_built_in_defaults() {
+    let files = toml_files(&repo_root().join("deploy/defaults"));
+    assert_eq!(files.len(), teleop_interfaces::nodes::NODES.len());
+    for path in &files {
+        let (_, same) = checker(&stem(path)).unwrap();
+        same(path);
+    }
 }
 
 #[test]

@@ -13,7 +13,7 @@ fn topics_md_matches_the_topic_table() {
     let start = text.find(BEGIN).expect("begin marker in docs/topics.md") + BEGIN.len();
     let end = text.find(END).expect("end marker in docs/topics.md");
     let documented = &text[start..end];
-    let generated = teleop_bus::topics::markdown_table();
+    let generated = teleop_interfaces::topics::markdown_table();
     assert_eq!(
         documented, generated,
         "docs/topics.md is out of date; regenerate the table with `teleop topics --markdown`"

@@ -4,10 +4,11 @@
 
 use std::time::Duration;
 
-use teleop_bus::{Bus, topics};
-use teleop_local_site::devices::SimulatedOperatorConfig;
+use teleop_bus::Bus;
+use teleop_interfaces::topics;
 use teleop_local_site::wrist_tracker::{self, WristTrackerConfig};
 use teleop_msgs::Lifecycle;
+use teleop_sim::operator::SimulatedOperatorConfig;
 use teleop_system_tests::{free_port, isolated_pair};
 
 /// Distance from `p` to the boundary of the axis-aligned square of side `side` centred
@@ -41,7 +42,6 @@ async fn wrist_tracker_publishes_ground_truth_poses_inputs_and_status() {
     };
     let cfg = WristTrackerConfig {
         bus: node_bus,
-        status_rate_hz: 5.0,
         operator: operator.clone(),
         ..Default::default()
     };
@@ -91,7 +91,7 @@ async fn wrist_tracker_publishes_ground_truth_poses_inputs_and_status() {
     assert_eq!(s.node_name, "wrist_tracker");
     assert!(s.counter("wrist_pose.published").unwrap() > 0);
     assert_eq!(s.counter("wrist_pose.rejected_non_finite"), Some(0));
-    assert!(counters.poses_published >= n_poses);
+    assert!(counters.counter("wrist_pose.published").unwrap() >= n_poses);
     assert_eq!(poses.stats().rejected(), 0);
 }
 
@@ -100,10 +100,10 @@ async fn wrist_tracker_publishes_ground_truth_poses_inputs_and_status() {
 /// pressed, then follows the operator.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn wrist_tracker_drives_the_simulated_pr2_arm_through_the_clutch() {
+    use teleop_hardware::wire;
     use teleop_remote_site::arm_node::{self, ArmNodeConfig};
     use teleop_remote_site::feedback_node::{self, FeedbackConfig};
     use teleop_remote_site::sim_node::{self, SimNodeConfig};
-    use teleop_remote_site::wire;
 
     let port = free_port().unwrap();
     let (hub, spoke) = isolated_pair(22, port);
@@ -132,7 +132,7 @@ async fn wrist_tracker_drives_the_simulated_pr2_arm_through_the_clutch() {
     let feedback_task = tokio::spawn(feedback_node::run(feedback, Some(Duration::from_secs(7))));
     tokio::time::sleep(Duration::from_millis(300)).await;
     let probe = Bus::open("probe", &spoke).await.unwrap();
-    let states = probe.subscriber(&topics::SIM_ARM_STATE).await.unwrap();
+    let states = probe.subscriber(&topics::HW_PR2_ARM_STATE).await.unwrap();
     let to_operator = probe.subscriber(&topics::PR2_JOINT_STATES).await.unwrap();
     let pressures = probe
         .subscriber(&topics::FINGERTIP_PRESSURES)
@@ -142,7 +142,9 @@ async fn wrist_tracker_drives_the_simulated_pr2_arm_through_the_clutch() {
     let tracker_task = tokio::spawn(wrist_tracker::run(tracker, Some(Duration::from_secs(7))));
 
     let read = |r: teleop_bus::Received<teleop_msgs::JointState>| {
-        wire::arm_state(&r.msg).unwrap().position_rad
+        wire::arm_state(&teleop_interfaces::joints::PR2_ARM_JOINTS, &r.msg)
+            .unwrap()
+            .position_rad
     };
     // Before the clutch (t < 2.5 s): the arm does not move.
     tokio::time::sleep(Duration::from_millis(1000)).await;
@@ -167,7 +169,9 @@ async fn wrist_tracker_drives_the_simulated_pr2_arm_through_the_clutch() {
         .recv_timeout(Duration::from_secs(2))
         .await
         .unwrap();
-    let fed = wire::arm_state(&fed.msg).unwrap().position_rad;
+    let fed = wire::arm_state(&teleop_interfaces::joints::PR2_ARM_JOINTS, &fed.msg)
+        .unwrap()
+        .position_rad;
     assert!(
         (fed - c).amax() < 0.05,
         "forwarded state far from the hardware's"
@@ -189,8 +193,8 @@ async fn wrist_tracker_drives_the_simulated_pr2_arm_through_the_clutch() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn remote_camera_views_reach_the_operator_site() {
     use teleop_remote_site::feedback_node::{self, FeedbackConfig};
-    use teleop_remote_site::sim::CameraViewsConfig;
     use teleop_remote_site::sim_node::{self, SimNodeConfig};
+    use teleop_sim::CameraViewsConfig;
 
     let (hub, spoke) = isolated_pair(23, free_port().unwrap());
     let sim = SimNodeConfig {

@@ -7,12 +7,13 @@
 
 use std::time::Duration;
 
-use teleop_bus::{Bus, topics};
+use teleop_bus::Bus;
+use teleop_hardware::wire;
+use teleop_interfaces::joints::SHADOW_FINGER_JOINTS as FINGER_JOINTS;
+use teleop_interfaces::topics;
 use teleop_msgs::{Header, JointState, OperatorInput, Time, unix_nanos_now};
 use teleop_remote_site::hand_node::{self, HandNodeConfig};
-use teleop_remote_site::hardware::FINGER_JOINTS;
 use teleop_remote_site::sim_node::{self, SceneKind, SimNodeConfig};
-use teleop_remote_site::wire;
 use teleop_system_tests::{free_port, isolated_pair};
 
 fn stamp() -> Header {
@@ -53,7 +54,7 @@ async fn the_hand_node_follows_with_enable_and_holds_when_targets_stop() {
     let op = Bus::open("hand_inference", &spoke).await.unwrap();
     let target_pub = op.publisher(&topics::HAND_JOINT_TARGETS).await.unwrap();
     let input_pub = op.publisher(&topics::OPERATOR_INPUT).await.unwrap();
-    let states = op.subscriber(&topics::SIM_HAND_STATE).await.unwrap();
+    let states = op.subscriber(&topics::HW_HAND_STATE).await.unwrap();
     let status = op.subscriber(&topics::NODE_STATUS).await.unwrap();
     let send = |ffj3: Option<f64>, enable: bool| {
         if let Some(q) = ffj3 {

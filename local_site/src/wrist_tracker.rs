@@ -1,5 +1,6 @@
-//! The wrist tracker node: polls the tracker and the pedals, publishes
-//! [`topics::WRIST_POSE`] and [`topics::OPERATOR_INPUT`], and its status.
+//! The wrist tracker node: reads the tracker and the pedals through the operator-site
+//! hardware traits, publishes [`topics::WRIST_POSE`] and [`topics::OPERATOR_INPUT`],
+//! on the node runner.
 //!
 //! A non-finite pose from the tracker is never published: it is counted as
 //! `wrist_pose.rejected_non_finite` and reported in the node status.
@@ -8,11 +9,12 @@ use std::time::Duration;
 
 use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
-use teleop_bus::{Bus, BusConfig, NodeConfig, StatusReporter, topics};
+use teleop_bus::{Bus, BusConfig, Publisher};
+use teleop_hardware::{OperatorPanel, WristTracker};
+use teleop_interfaces::topics;
 use teleop_msgs::{Header, Lifecycle, OperatorInput, Point, Pose, PoseStamped, Quaternion, Time};
-use tokio::time::MissedTickBehavior;
-
-use crate::devices::{OperatorDevice, SimulatedOperator, SimulatedOperatorConfig, WristTracker};
+use teleop_node::{FinalReport, Node, NodeConfig, Periodic};
+use teleop_sim::operator::{SimulatedDevices, SimulatedOperator, SimulatedOperatorConfig};
 
 /// Configuration of the wrist tracker node.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -26,8 +28,6 @@ pub struct WristTrackerConfig {
     pub pose_rate_hz: f64,
     /// Pedal state publishing rate, Hz (also the operator-side heartbeat).
     pub input_rate_hz: f64,
-    /// Status report rate, Hz.
-    pub status_rate_hz: f64,
     /// The simulated operator (the only backend today).
     pub operator: SimulatedOperatorConfig,
     pub bus: BusConfig,
@@ -40,7 +40,6 @@ impl Default for WristTrackerConfig {
             frame_id: "tracker".into(),
             pose_rate_hz: topics::WRIST_POSE.spec.rate_hz,
             input_rate_hz: topics::OPERATOR_INPUT.spec.rate_hz,
-            status_rate_hz: 1.0,
             operator: SimulatedOperatorConfig::default(),
             bus: BusConfig::default(),
         }
@@ -55,7 +54,6 @@ impl NodeConfig for WristTrackerConfig {
         for (name, v) in [
             ("pose_rate_hz", self.pose_rate_hz),
             ("input_rate_hz", self.input_rate_hz),
-            ("status_rate_hz", self.status_rate_hz),
         ] {
             if !(v.is_finite() && v > 0.0 && v <= 10_000.0) {
                 return Err(format!("{name} must be in (0, 10000] Hz, got {v}"));
@@ -95,7 +93,8 @@ pub struct TrackerCounters {
 }
 
 impl TrackerCounters {
-    fn named(&self) -> Vec<(String, u64)> {
+    /// The counters by name, as in the node status.
+    pub fn named(&self) -> Vec<(String, u64)> {
         vec![
             ("wrist_pose.published".into(), self.poses_published),
             ("wrist_pose.missing".into(), self.poses_missing),
@@ -108,82 +107,167 @@ impl TrackerCounters {
     }
 }
 
-/// Runs the node until `duration` elapses (forever if `None`) or Ctrl-C.
+/// The node: the devices, the publishers.
+pub struct WristTrackerNode {
+    frame_id: String,
+    pose_period: Duration,
+    tracker: Box<dyn WristTracker>,
+    panel: Box<dyn OperatorPanel>,
+    pose_pub: Publisher<PoseStamped>,
+    input_pub: Publisher<OperatorInput>,
+    input_due: Periodic,
+    counters: TrackerCounters,
+    devices_ok: bool,
+    last_error: String,
+}
+
+impl std::fmt::Debug for WristTrackerNode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("WristTrackerNode")
+            .field("counters", &self.counters)
+            .finish()
+    }
+}
+
+impl WristTrackerNode {
+    /// The node with the simulated operator's devices (the only backend today).
+    ///
+    /// # Errors
+    /// Bus declarations.
+    pub async fn new(cfg: &WristTrackerConfig, bus: &Bus) -> anyhow::Result<Self> {
+        let tracker = SimulatedDevices::new(SimulatedOperator::new(cfg.operator.clone()));
+        let panel = SimulatedDevices::new(SimulatedOperator::new(cfg.operator.clone()));
+        Self::with_devices(cfg, bus, Box::new(tracker), Box::new(panel)).await
+    }
+
+    /// The node with given devices.
+    ///
+    /// # Errors
+    /// Bus declarations.
+    pub async fn with_devices(
+        cfg: &WristTrackerConfig,
+        bus: &Bus,
+        tracker: Box<dyn WristTracker>,
+        panel: Box<dyn OperatorPanel>,
+    ) -> anyhow::Result<Self> {
+        Ok(Self {
+            frame_id: cfg.frame_id.clone(),
+            pose_period: Duration::from_secs_f64(1.0 / cfg.pose_rate_hz),
+            tracker,
+            panel,
+            pose_pub: bus.publisher(&topics::WRIST_POSE).await?,
+            input_pub: bus.publisher(&topics::OPERATOR_INPUT).await?,
+            input_due: Periodic::at_rate(cfg.input_rate_hz),
+            counters: TrackerCounters::default(),
+            devices_ok: true,
+            last_error: String::new(),
+        })
+    }
+
+    /// Counters so far.
+    pub fn tracker_counters(&self) -> TrackerCounters {
+        self.counters
+    }
+}
+
+fn stamp(now_s: f64) -> Time {
+    // Seconds since the epoch: far inside the i64 ns range.
+    #[allow(clippy::cast_possible_truncation)]
+    Time::from_nanos((now_s * 1e9) as i64)
+}
+
+impl Node for WristTrackerNode {
+    fn period(&self) -> Duration {
+        self.pose_period
+    }
+
+    fn tick(&mut self, now_s: f64) {
+        let mut ok = true;
+        match self.tracker.read(now_s) {
+            Ok(None) => self.counters.poses_missing += 1,
+            Ok(Some(p)) => match pose_msg(&p) {
+                Some(pose) => {
+                    let msg = PoseStamped {
+                        header: Header::new(stamp(now_s), self.frame_id.clone()),
+                        pose,
+                    };
+                    match self.pose_pub.put(&msg) {
+                        Ok(()) => self.counters.poses_published += 1,
+                        Err(e) => {
+                            self.last_error = e.to_string();
+                            tracing::warn!("publishing wrist pose: {e}");
+                        }
+                    }
+                }
+                None => {
+                    self.counters.poses_non_finite += 1;
+                    self.last_error = "tracker returned a non-finite pose".into();
+                }
+            },
+            Err(e) => {
+                ok = false;
+                self.counters.poses_missing += 1;
+                self.last_error = format!("tracker: {e}");
+            }
+        }
+        if self.input_due.due(now_s) {
+            match self.panel.read(now_s) {
+                Ok(s) => {
+                    let msg = OperatorInput {
+                        header: Header::new(stamp(now_s), ""),
+                        clutch: s.clutch,
+                        enable: s.enable,
+                        camera_stop: s.camera_stop,
+                        motion_scale: s.motion_scale,
+                    };
+                    match self.input_pub.put(&msg) {
+                        Ok(()) => self.counters.inputs_published += 1,
+                        Err(e) => self.last_error = e.to_string(),
+                    }
+                }
+                Err(e) => {
+                    // Nothing is published: the robot site stops on stale input.
+                    ok = false;
+                    self.last_error = format!("pedals: {e}");
+                }
+            }
+        }
+        self.devices_ok = ok;
+    }
+
+    fn state(&self) -> Lifecycle {
+        if self.devices_ok {
+            Lifecycle::Active
+        } else {
+            Lifecycle::Fault
+        }
+    }
+
+    fn counters(&self) -> Vec<(String, u64)> {
+        self.counters.named()
+    }
+
+    fn last_error(&self) -> String {
+        self.last_error.clone()
+    }
+}
+
+/// Runs the node on the system clock until `duration` elapses (forever if `None`) or
+/// SIGINT/SIGTERM.
 ///
 /// # Errors
 /// Bus errors (session, declarations).
 pub async fn run(
     cfg: WristTrackerConfig,
     duration: Option<Duration>,
-) -> anyhow::Result<TrackerCounters> {
+) -> anyhow::Result<FinalReport> {
     let bus = Bus::open(&cfg.node_name, &cfg.bus).await?;
-    let pose_pub = bus.publisher(&topics::WRIST_POSE).await?;
-    let input_pub = bus.publisher(&topics::OPERATOR_INPUT).await?;
-    let status = StatusReporter::new(&bus).await?;
-    tracing::info!(node = %cfg.node_name, zid = bus.zid(), "wrist tracker running (simulated operator)");
-
-    let mut operator = SimulatedOperator::new(cfg.operator.clone());
-    let mut pose_tick = tokio::time::interval(Duration::from_secs_f64(1.0 / cfg.pose_rate_hz));
-    let mut input_tick = tokio::time::interval(Duration::from_secs_f64(1.0 / cfg.input_rate_hz));
-    let mut status_tick = tokio::time::interval(Duration::from_secs_f64(1.0 / cfg.status_rate_hz));
-    for t in [&mut pose_tick, &mut input_tick, &mut status_tick] {
-        t.set_missed_tick_behavior(MissedTickBehavior::Skip);
-    }
-    let start = tokio::time::Instant::now();
-    let stop = teleop_bus::node::stop_signal(duration);
-    tokio::pin!(stop);
-    let mut counters = TrackerCounters::default();
-    let mut last_error = String::new();
-    loop {
-        tokio::select! {
-            _ = &mut stop => break,
-            _ = pose_tick.tick() => {
-                let t = start.elapsed().as_secs_f64();
-                match WristTracker::read(&mut operator, t) {
-                    None => counters.poses_missing += 1,
-                    Some(p) => match pose_msg(&p) {
-                        Some(pose) => {
-                            let msg = PoseStamped { header: Header::new(Time::now(), cfg.frame_id.clone()), pose };
-                            if let Err(e) = pose_pub.put(&msg) {
-                                last_error = e.to_string();
-                                tracing::warn!("publishing wrist pose: {e}");
-                            } else {
-                                counters.poses_published += 1;
-                            }
-                        }
-                        None => {
-                            counters.poses_non_finite += 1;
-                            last_error = "tracker returned a non-finite pose".into();
-                        }
-                    },
-                }
-            }
-            _ = input_tick.tick() => {
-                let t = start.elapsed().as_secs_f64();
-                let s = OperatorDevice::read(&mut operator, t);
-                let msg = OperatorInput {
-                    header: Header::new(Time::now(), ""),
-                    clutch: s.clutch,
-                    enable: s.enable,
-                    camera_stop: s.camera_stop,
-                    motion_scale: s.motion_scale,
-                };
-                match input_pub.put(&msg) {
-                    Ok(()) => counters.inputs_published += 1,
-                    Err(e) => last_error = e.to_string(),
-                }
-            }
-            _ = status_tick.tick() => {
-                if let Err(e) = status.report(Lifecycle::Active, &counters.named(), &last_error) {
-                    tracing::warn!("publishing status: {e}");
-                }
-            }
-        }
-    }
-    let _ = status.report(Lifecycle::Finalized, &counters.named(), &last_error);
-    drop((pose_pub, input_pub, status));
-    bus.close().await?;
-    Ok(counters)
+    let node = WristTrackerNode::new(&cfg, &bus).await?;
+    tracing::info!(
+        zid = bus.zid(),
+        "wrist tracker running (simulated operator)"
+    );
+    teleop_node::run(bus, node, teleop_node::stop_signal(duration)).await
 }
 
 #[cfg(test)]

@@ -11,10 +11,10 @@ use std::time::Instant;
 use nalgebra::{Isometry3, SVector, Translation3, UnitQuaternion};
 use teleop_ik::{Goal, IkSettings, Solver};
 use teleop_kinematics::robots;
+use teleop_remote_site::arm_controller::ArmState;
 use teleop_remote_site::arm_controller::{
     ArmController, ArmControllerConfig, ArmInputs, OperatorSample, WristSample,
 };
-use teleop_remote_site::hardware::ArmState;
 
 fn pct(v: &mut [f64], p: f64) -> f64 {
     v.sort_by(f64::total_cmp);

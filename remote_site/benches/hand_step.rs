@@ -12,10 +12,11 @@ use std::time::Instant;
 
 use nalgebra::SVector;
 use teleop_control::hand::{HandControllerConfig, HandMode, ShadowHandController};
+use teleop_hardware::HandState;
+use teleop_interfaces::joints::SHADOW_FINGER_JOINTS as FINGER_JOINTS;
 use teleop_msgs::JointState;
 use teleop_remote_site::hand_controller::{EnableSample, HandSupervisor, HandSupervisorConfig};
-use teleop_remote_site::hardware::{FINGER_JOINTS, HandState};
-use teleop_remote_site::sim::{CupGraspConfig, World};
+use teleop_sim::{CupGraspConfig, World};
 
 fn pct(v: &mut [f64], p: f64) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -35,7 +36,7 @@ fn main() {
         let out = c
             .step(DT, &s.position_rad, &s.velocity_rad_s, &target)
             .unwrap();
-        w.command_hand(&out.into());
+        w.command_hand(&teleop_remote_site::hand_controller::hand_command(out));
         w.step(DT);
         states.push(s);
     }

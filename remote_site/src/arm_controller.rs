@@ -38,7 +38,12 @@ use teleop_control::{
 use teleop_ik::{Goal, IkSettings, Solver};
 use teleop_kinematics::FixedChain;
 
-use crate::hardware::{ArmCommand, ArmState};
+use teleop_hardware::{ArmCommand as Command, ArmState as State};
+
+/// The PR2 chain's command.
+pub type ArmCommand = Command<7>;
+/// The PR2 chain's state.
+pub type ArmState = State<7>;
 
 /// Settings of the arm controller. Defaults are the thesis values.
 ///
@@ -306,6 +311,11 @@ impl ArmController {
     }
     pub fn is_engaged(&self) -> bool {
         self.engaged.is_some()
+    }
+    /// The safety stop that latched the arm (it re-engages only on a fresh clutch
+    /// press), if any.
+    pub fn latched(&self) -> Option<StopReason> {
+        self.latched
     }
     pub fn counters(&self) -> ArmCounters {
         self.counters

@@ -1,26 +1,30 @@
 //! The PR2 arm controller node: operator inputs from the bus, the arm through an
-//! [`ArmHardware`], the [`ArmController`] core in between, at the configured rate.
+//! [`ArmHardware`], the [`ArmController`] core in between, at the configured rate, on
+//! the node runner (`teleop-node`).
 
 use std::time::Duration;
 
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
-use teleop_bus::{Bus, BusConfig, NodeConfig, StatusReporter, topics};
-use teleop_msgs::{Lifecycle, Pose, unix_seconds_now as now_s};
-use tokio::time::MissedTickBehavior;
+use teleop_bus::{Bus, BusConfig, NodeWatch, Subscriber};
+use teleop_hardware::ArmHardware;
+use teleop_hardware_bus::BusArm;
+use teleop_interfaces::hardware::PR2_ARM;
+use teleop_interfaces::{Site, nodes, topics};
+use teleop_msgs::{Lifecycle, OperatorInput, Pose, PoseStamped};
+use teleop_node::{FinalReport, Node, NodeConfig};
 
 use crate::arm_controller::{
-    ArmController, ArmControllerConfig, ArmInputs, OperatorSample, WristSample,
+    ArmCommand, ArmController, ArmControllerConfig, ArmInputs, OperatorSample, WristSample,
 };
-use crate::bus_hardware::BusArm;
-use crate::hardware::{ArmCommand, ArmHardware};
 
 /// Configuration of the `pr2_arm_controller` node.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ArmNodeConfig {
     pub node_name: String,
-    /// Nodes of the operator site; the arm stops when none of them is alive.
+    /// Nodes of the operator site; the arm stops when none of them is alive. Default:
+    /// the operator-site nodes of the node table.
     pub operator_site_nodes: Vec<String>,
     /// The arm hardware's state counts as lost after this long, s.
     pub hardware_timeout_s: f64,
@@ -31,8 +35,8 @@ pub struct ArmNodeConfig {
 impl Default for ArmNodeConfig {
     fn default() -> Self {
         Self {
-            node_name: "pr2_arm_controller".into(),
-            operator_site_nodes: vec!["wrist_tracker".into()],
+            node_name: PR2_ARM.controller_node.into(),
+            operator_site_nodes: nodes::of_site(Site::Local).map(String::from).collect(),
             hardware_timeout_s: 0.1,
             arm: ArmControllerConfig::default(),
             bus: BusConfig::default(),
@@ -40,15 +44,32 @@ impl Default for ArmNodeConfig {
     }
 }
 
+/// Checks the settings every controller node has: the operator-site nodes it watches
+/// (at least one) and how old the hardware state may get (finite, > 0).
+///
+/// # Errors
+/// A message naming the field.
+pub fn check_controller_links(
+    operator_site_nodes: &[String],
+    hardware_timeout_s: f64,
+) -> Result<(), String> {
+    if operator_site_nodes.is_empty() {
+        return Err("operator_site_nodes must name at least one node".into());
+    }
+    if !(hardware_timeout_s.is_finite() && hardware_timeout_s > 0.0) {
+        return Err(format!(
+            "hardware_timeout_s must be positive, got {hardware_timeout_s}"
+        ));
+    }
+    Ok(())
+}
+
 impl NodeConfig for ArmNodeConfig {
     fn bus_mut(&mut self) -> &mut BusConfig {
         &mut self.bus
     }
     fn validate(&self) -> Result<(), String> {
-        crate::bus_hardware::check_controller_links(
-            &self.operator_site_nodes,
-            self.hardware_timeout_s,
-        )?;
+        check_controller_links(&self.operator_site_nodes, self.hardware_timeout_s)?;
         self.arm.validate()
     }
 }
@@ -63,78 +84,145 @@ pub fn isometry(p: &Pose) -> Isometry3<f64> {
     )
 }
 
-/// Runs the node until `duration` elapses (forever if `None`) or Ctrl-C.
+/// The node: its subscriptions, the arm, the controller core.
+#[derive(Debug)]
+pub struct ArmNode {
+    operator_site_nodes: Vec<String>,
+    wrist_sub: Subscriber<PoseStamped>,
+    input_sub: Subscriber<OperatorInput>,
+    watch: NodeWatch,
+    hw: BusArm<7>,
+    ctrl: ArmController,
+    wrist: Option<WristSample>,
+    operator: Option<OperatorSample>,
+    hardware_errors: u64,
+    hardware_ok: bool,
+    last_error: String,
+}
+
+impl ArmNode {
+    /// Declares the node's subscriptions and the arm client on `bus`.
+    ///
+    /// # Errors
+    /// Bus declarations or the controller's configuration.
+    pub async fn new(cfg: &ArmNodeConfig, bus: &Bus) -> anyhow::Result<Self> {
+        let ctrl =
+            ArmController::new(teleop_kinematics::robots::pr2_arm_chain()?, cfg.arm.clone())?;
+        Ok(Self {
+            operator_site_nodes: cfg.operator_site_nodes.clone(),
+            wrist_sub: bus.subscriber(&topics::WRIST_POSE).await?,
+            input_sub: bus.subscriber(&topics::OPERATOR_INPUT).await?,
+            watch: bus.watch_nodes().await?,
+            hw: BusArm::new(bus, &PR2_ARM, cfg.hardware_timeout_s).await?,
+            ctrl,
+            wrist: None,
+            operator: None,
+            hardware_errors: 0,
+            hardware_ok: false,
+            last_error: String::new(),
+        })
+    }
+
+    /// The controller core.
+    pub fn controller(&self) -> &ArmController {
+        &self.ctrl
+    }
+}
+
+impl Node for ArmNode {
+    fn period(&self) -> Duration {
+        Duration::from_secs_f64(1.0 / self.ctrl.config().rate_hz)
+    }
+
+    fn tick(&mut self, now_s: f64) {
+        while let Some(r) = self.wrist_sub.try_recv() {
+            self.wrist = Some(WristSample {
+                received_s: r.receive_time_s(),
+                pose: isometry(&r.msg.pose),
+            });
+        }
+        while let Some(r) = self.input_sub.try_recv() {
+            self.operator = Some(OperatorSample {
+                received_s: r.receive_time_s(),
+                clutch: r.msg.clutch,
+                enable: r.msg.enable,
+                motion_scale: r.msg.motion_scale,
+            });
+        }
+        let alive = self
+            .operator_site_nodes
+            .iter()
+            .any(|n| self.watch.is_alive(n));
+        let inputs = ArmInputs {
+            operator: self.operator,
+            wrist: self.wrist,
+            operator_site_alive: alive,
+        };
+        let command = match self.hw.read(now_s) {
+            Ok(state) => {
+                self.hardware_ok = true;
+                self.ctrl.step(now_s, &inputs, &state).command
+            }
+            Err(e) => {
+                self.hardware_ok = false;
+                self.hardware_errors += 1;
+                self.last_error = e.to_string();
+                // Without a state, command a stop (the hardware stops on its own too).
+                ArmCommand::stop()
+            }
+        };
+        if let Err(e) = self.hw.write(now_s, &command) {
+            self.hardware_errors += 1;
+            self.last_error = e.to_string();
+        }
+    }
+
+    fn state(&self) -> Lifecycle {
+        // A latch by the operator's own hand (enable released) is not a fault.
+        let faulted = self
+            .ctrl
+            .latched()
+            .is_some_and(|r| r != crate::arm_controller::StopReason::EnableReleased);
+        if !self.hardware_ok || faulted {
+            Lifecycle::Fault
+        } else if self.ctrl.is_engaged() {
+            Lifecycle::Active
+        } else {
+            Lifecycle::Inactive
+        }
+    }
+
+    fn counters(&self) -> Vec<(String, u64)> {
+        let mut counters = self.ctrl.named_counters();
+        counters.push(("arm.hardware_errors".into(), self.hardware_errors));
+        counters.push(("arm.bad_hardware_states".into(), self.hw.bad_states()));
+        counters.extend(self.wrist_sub.named_counters());
+        counters.extend(self.input_sub.named_counters());
+        counters
+    }
+
+    fn last_error(&self) -> String {
+        self.last_error.clone()
+    }
+
+    fn shutdown(&mut self, now_s: f64) {
+        if let Err(e) = self.hw.write(now_s, &ArmCommand::stop()) {
+            tracing::warn!("stopping the arm at shutdown: {e}");
+        }
+    }
+}
+
+/// Runs the node on the system clock until `duration` elapses (forever if `None`) or
+/// SIGINT/SIGTERM.
 ///
 /// # Errors
 /// Bus or configuration errors.
-pub async fn run(cfg: ArmNodeConfig, duration: Option<Duration>) -> anyhow::Result<()> {
+pub async fn run(cfg: ArmNodeConfig, duration: Option<Duration>) -> anyhow::Result<FinalReport> {
     let bus = Bus::open(&cfg.node_name, &cfg.bus).await?;
-    let wrist_sub = bus.subscriber(&topics::WRIST_POSE).await?;
-    let input_sub = bus.subscriber(&topics::OPERATOR_INPUT).await?;
-    let watch = bus.watch_nodes().await?;
-    let status = StatusReporter::new(&bus).await?;
-    let mut hw = BusArm::new(&bus, cfg.hardware_timeout_s).await?;
-    let mut ctrl =
-        ArmController::new(teleop_kinematics::robots::pr2_arm_chain()?, cfg.arm.clone())?;
-    tracing::info!(node = %cfg.node_name, rate_hz = cfg.arm.rate_hz, "PR2 arm controller running; arm disabled until clutch + enable");
-
-    let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / cfg.arm.rate_hz));
-    tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
-    let mut status_tick = tokio::time::interval(Duration::from_secs(1));
-    let stop = teleop_bus::node::stop_signal(duration);
-    tokio::pin!(stop);
-    let mut wrist: Option<WristSample> = None;
-    let mut operator: Option<OperatorSample> = None;
-    let mut hardware_errors = 0u64;
-    let mut last_error = String::new();
-    loop {
-        tokio::select! {
-            _ = &mut stop => break,
-            _ = status_tick.tick() => {
-                let mut counters = ctrl.named_counters();
-                counters.push(("arm.hardware_errors".into(), hardware_errors));
-                counters.extend(wrist_sub.named_counters());
-                counters.extend(input_sub.named_counters());
-                let state = if ctrl.is_engaged() { Lifecycle::Active } else { Lifecycle::Inactive };
-                if let Err(e) = status.report(state, &counters, &last_error) {
-                    tracing::warn!("status: {e}");
-                }
-            }
-            _ = tick.tick() => {
-                while let Some(r) = wrist_sub.try_recv() {
-                    wrist = Some(WristSample { received_s: r.receive_time_s(), pose: isometry(&r.msg.pose) });
-                }
-                while let Some(r) = input_sub.try_recv() {
-                    operator = Some(OperatorSample {
-                        received_s: r.receive_time_s(),
-                        clutch: r.msg.clutch,
-                        enable: r.msg.enable,
-                        motion_scale: r.msg.motion_scale,
-                    });
-                }
-                let alive = cfg.operator_site_nodes.iter().any(|n| watch.is_alive(n));
-                let inputs = ArmInputs { operator, wrist, operator_site_alive: alive };
-                match hw.read() {
-                    Ok(state) => {
-                        let out = ctrl.step(now_s(), &inputs, &state);
-                        if let Err(e) = hw.write(&out.command) {
-                            hardware_errors += 1;
-                            last_error = e.to_string();
-                        }
-                    }
-                    Err(e) => {
-                        hardware_errors += 1;
-                        last_error = e.to_string();
-                        // Without a state, command a stop (the driver stops on its own too).
-                        let _ = hw.write(&ArmCommand::stop());
-                    }
-                }
-            }
-        }
-    }
-    let _ = hw.write(&ArmCommand::stop());
-    let _ = status.report(Lifecycle::Finalized, &ctrl.named_counters(), &last_error);
-    drop((wrist_sub, input_sub, watch, status, hw));
-    bus.close().await?;
-    Ok(())
+    let node = ArmNode::new(&cfg, &bus).await?;
+    tracing::info!(
+        rate_hz = cfg.arm.rate_hz,
+        "PR2 arm controller: arm disabled until clutch + enable"
+    );
+    teleop_node::run(bus, node, teleop_node::stop_signal(duration)).await
 }

@@ -5,16 +5,16 @@
 //! operator site, each at most `camera_rate_hz`, newest frame only: frames that arrive
 //! faster are dropped and counted, never queued.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
-use teleop_bus::{Bus, BusConfig, NodeConfig, StatusReporter, topics};
-use teleop_msgs::Lifecycle;
-use tokio::time::MissedTickBehavior;
-
-use crate::bus_hardware::{BusArm, BusCamera, BusHand};
-use crate::hardware::{ArmHardware, CameraHardware, HandHardware};
-use crate::wire;
+use teleop_bus::{Bus, BusConfig, Publisher};
+use teleop_hardware::{ArmHardware, Camera, CameraKind, HandHardware, wire};
+use teleop_hardware_bus::{BusArm, BusCamera, BusHand};
+use teleop_interfaces::hardware::{PR2_ARM, SHADOW_HAND};
+use teleop_interfaces::topics;
+use teleop_msgs::{FingertipPressures, JointState, Lifecycle};
+use teleop_node::{FinalReport, Node, NodeConfig};
 
 /// Configuration of the `feedback_publisher` node.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -74,94 +74,147 @@ impl NodeConfig for FeedbackConfig {
     }
 }
 
-/// Runs the node until `duration` elapses (forever if `None`) or Ctrl-C.
+/// The node: read-only hardware handles, the publishers toward the operator site.
+#[derive(Debug)]
+pub struct FeedbackNode {
+    rate_hz: f64,
+    arm: BusArm<7>,
+    hand: BusHand,
+    arm_pub: Publisher<JointState>,
+    hand_pub: Publisher<JointState>,
+    pressure_pub: Publisher<FingertipPressures>,
+    cameras: Vec<CameraForward>,
+    arm_sent: u64,
+    hand_sent: u64,
+    missing: u64,
+    hardware_ok: bool,
+    last_error: String,
+}
+
+impl FeedbackNode {
+    /// Declares the handles and publishers on `bus`.
+    ///
+    /// # Errors
+    /// Bus declarations.
+    pub async fn new(cfg: &FeedbackConfig, bus: &Bus) -> anyhow::Result<Self> {
+        let mut cameras = Vec::new();
+        if cfg.camera_rate_hz > 0.0 {
+            for (name, from, to) in [
+                ("top", topics::HW_CAMERA_TOP, topics::REMOTE_CAMERA_TOP),
+                ("side", topics::HW_CAMERA_SIDE, topics::REMOTE_CAMERA_SIDE),
+            ] {
+                cameras.push(CameraForward {
+                    name,
+                    camera: BusCamera::monitor(bus, &from, CameraKind::Color).await?,
+                    publisher: bus.publisher(&to).await?,
+                    forwarded: 0,
+                    // 10 % below the period: frames arriving at exactly the limit's rate
+                    // (with jitter) all pass.
+                    min_interval_s: 0.9 / cfg.camera_rate_hz,
+                    last_sent_s: None,
+                });
+            }
+        }
+        Ok(Self {
+            rate_hz: cfg.rate_hz,
+            arm: BusArm::monitor(bus, &PR2_ARM, cfg.hardware_timeout_s).await?,
+            hand: BusHand::monitor(bus, &SHADOW_HAND, cfg.hardware_timeout_s).await?,
+            arm_pub: bus.publisher(&topics::PR2_JOINT_STATES).await?,
+            hand_pub: bus.publisher(&topics::SHADOW_JOINT_STATES).await?,
+            pressure_pub: bus.publisher(&topics::FINGERTIP_PRESSURES).await?,
+            cameras,
+            arm_sent: 0,
+            hand_sent: 0,
+            missing: 0,
+            hardware_ok: false,
+            last_error: String::new(),
+        })
+    }
+}
+
+impl Node for FeedbackNode {
+    fn period(&self) -> Duration {
+        Duration::from_secs_f64(1.0 / self.rate_hz)
+    }
+
+    fn tick(&mut self, now_s: f64) {
+        let mut ok = true;
+        match self.arm.read(now_s) {
+            Ok(s) => match self.arm_pub.put(&wire::arm_state_msg(&PR2_ARM.joints, &s)) {
+                Ok(()) => self.arm_sent += 1,
+                Err(e) => self.last_error = e.to_string(),
+            },
+            Err(e) => {
+                ok = false;
+                self.missing += 1;
+                self.last_error = e.to_string();
+            }
+        }
+        match self.hand.read(now_s) {
+            Ok(s) => {
+                match self.hand_pub.put(&wire::hand_state_msg(&s)) {
+                    Ok(()) => self.hand_sent += 1,
+                    Err(e) => self.last_error = e.to_string(),
+                }
+                if let Err(e) = self.pressure_pub.put(&wire::tactile_msg(&s)) {
+                    self.last_error = e.to_string();
+                }
+            }
+            Err(e) => {
+                ok = false;
+                self.missing += 1;
+                self.last_error = e.to_string();
+            }
+        }
+        self.hardware_ok = ok;
+        // Cameras are checked at this (faster) rate and forwarded on arrival,
+        // rate-limited, so a 15 Hz camera is not aliased by a 15 Hz poll.
+        for c in &mut self.cameras {
+            if let Err(e) = c.forward(now_s) {
+                self.last_error = format!("camera {}: {e}", c.name);
+            }
+        }
+    }
+
+    /// Active while both robots' states come in; Fault when one is missing (the
+    /// operator site then sees no feedback). It commands nothing.
+    fn state(&self) -> Lifecycle {
+        if self.hardware_ok {
+            Lifecycle::Active
+        } else {
+            Lifecycle::Fault
+        }
+    }
+
+    fn counters(&self) -> Vec<(String, u64)> {
+        let mut counters = vec![
+            ("feedback.arm_states".to_owned(), self.arm_sent),
+            ("feedback.hand_states".to_owned(), self.hand_sent),
+            ("feedback.hardware_missing".to_owned(), self.missing),
+        ];
+        for c in &self.cameras {
+            let name = |what| format!("feedback.camera_{}.{what}", c.name);
+            counters.push((name("forwarded"), c.forwarded));
+            counters.push((name("dropped"), c.camera.dropped()));
+            counters.push((name("bad"), c.camera.bad_images()));
+        }
+        counters
+    }
+
+    fn last_error(&self) -> String {
+        self.last_error.clone()
+    }
+}
+
+/// Runs the node on the system clock until `duration` elapses (forever if `None`) or
+/// SIGINT/SIGTERM.
 ///
 /// # Errors
 /// Bus errors.
-pub async fn run(cfg: FeedbackConfig, duration: Option<Duration>) -> anyhow::Result<()> {
+pub async fn run(cfg: FeedbackConfig, duration: Option<Duration>) -> anyhow::Result<FinalReport> {
     let bus = Bus::open(&cfg.node_name, &cfg.bus).await?;
-    let mut arm = BusArm::monitor(&bus, cfg.hardware_timeout_s).await?;
-    let mut hand = BusHand::monitor(&bus, cfg.hardware_timeout_s).await?;
-    let arm_pub = bus.publisher(&topics::PR2_JOINT_STATES).await?;
-    let hand_pub = bus.publisher(&topics::SHADOW_JOINT_STATES).await?;
-    let pressure_pub = bus.publisher(&topics::FINGERTIP_PRESSURES).await?;
-    let status = StatusReporter::new(&bus).await?;
-    let mut cameras = Vec::new();
-    if cfg.camera_rate_hz > 0.0 {
-        for (name, from, to) in [
-            ("top", topics::SIM_CAMERA_TOP, topics::REMOTE_CAMERA_TOP),
-            ("side", topics::SIM_CAMERA_SIDE, topics::REMOTE_CAMERA_SIDE),
-        ] {
-            cameras.push(CameraForward {
-                name,
-                camera: BusCamera::monitor(&bus, &from).await?,
-                publisher: bus.publisher(&to).await?,
-                forwarded: 0,
-                // 10 % below the period: frames arriving at exactly the limit's rate
-                // (with jitter) all pass.
-                min_interval: Duration::from_secs_f64(0.9 / cfg.camera_rate_hz),
-                last_sent: None,
-            });
-        }
-    }
-    let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / cfg.rate_hz));
-    tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
-    let mut status_tick = tokio::time::interval(Duration::from_secs(1));
-    let stop = teleop_bus::node::stop_signal(duration);
-    tokio::pin!(stop);
-    let (mut arm_sent, mut hand_sent, mut missing) = (0u64, 0u64, 0u64);
-    let mut last_error = String::new();
-    loop {
-        tokio::select! {
-            _ = &mut stop => break,
-            _ = status_tick.tick() => {
-                let mut counters = vec![
-                    ("feedback.arm_states".to_owned(), arm_sent),
-                    ("feedback.hand_states".to_owned(), hand_sent),
-                    ("feedback.hardware_missing".to_owned(), missing),
-                ];
-                for c in &cameras {
-                    let name = |what| format!("feedback.camera_{}.{what}", c.name);
-                    counters.push((name("forwarded"), c.forwarded));
-                    counters.push((name("dropped"), c.camera.dropped()));
-                    counters.push((name("bad"), c.camera.bad_images()));
-                }
-                let _ = status.report(Lifecycle::Active, &counters, &last_error);
-            }
-            _ = tick.tick() => {
-                match arm.read() {
-                    Ok(s) => match arm_pub.put(&wire::arm_state_msg(&s)) {
-                        Ok(()) => arm_sent += 1,
-                        Err(e) => last_error = e.to_string(),
-                    },
-                    Err(e) => { missing += 1; last_error = e.to_string(); }
-                }
-                match hand.read() {
-                    Ok(s) => {
-                        match hand_pub.put(&wire::hand_state_msg(&s)) {
-                            Ok(()) => hand_sent += 1,
-                            Err(e) => last_error = e.to_string(),
-                        }
-                        if let Err(e) = pressure_pub.put(&wire::tactile_msg(&s)) {
-                            last_error = e.to_string();
-                        }
-                    }
-                    Err(e) => { missing += 1; last_error = e.to_string(); }
-                }
-                // Cameras are checked at this (faster) rate and forwarded on arrival,
-                // rate-limited, so a 15 Hz camera is not aliased by a 15 Hz poll.
-                let now = Instant::now();
-                for c in &mut cameras {
-                    if let Err(e) = c.forward(now) {
-                        last_error = format!("camera {}: {e}", c.name);
-                    }
-                }
-            }
-        }
-    }
-    drop((arm, hand, arm_pub, hand_pub, pressure_pub, status, cameras));
-    bus.close().await?;
-    Ok(())
+    let node = FeedbackNode::new(&cfg, &bus).await?;
+    teleop_node::run(bus, node, teleop_node::stop_signal(duration)).await
 }
 
 /// One camera view on its way to the operator site.
@@ -171,9 +224,9 @@ struct CameraForward {
     camera: BusCamera,
     publisher: teleop_bus::Publisher<teleop_msgs::Image>,
     forwarded: u64,
-    /// Shortest time between two forwarded frames.
-    min_interval: Duration,
-    last_sent: Option<Instant>,
+    /// Shortest time between two forwarded frames, s.
+    min_interval_s: f64,
+    last_sent_s: Option<f64>,
 }
 
 impl CameraForward {
@@ -181,17 +234,17 @@ impl CameraForward {
     /// limit allows, as it came (stamp and frame of the camera). While the limit holds
     /// frames back they wait in the newest-only subscription (older ones are dropped
     /// and counted there).
-    fn forward(&mut self, now: Instant) -> anyhow::Result<()> {
+    fn forward(&mut self, now_s: f64) -> anyhow::Result<()> {
         if self
-            .last_sent
-            .is_some_and(|t| now.duration_since(t) < self.min_interval)
+            .last_sent_s
+            .is_some_and(|t| now_s - t < self.min_interval_s)
         {
             return Ok(());
         }
-        if let Some(image) = self.camera.latest()? {
+        if let Some(image) = self.camera.read(now_s)? {
             self.publisher.put(&image)?;
             self.forwarded += 1;
-            self.last_sent = Some(now);
+            self.last_sent_s = Some(now_s);
         }
         Ok(())
     }

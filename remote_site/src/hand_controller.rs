@@ -26,19 +26,30 @@
 //!   the previous command is sent again.
 //! * **Gravity.** Every law adds the gravity compensation `G(q)` of eq. 8.2, computed
 //!   from the URDF masses with the hand posed by the measured arm
-//!   ([`crate::hand_gravity`]); without an arm posture it adds none (counted).
+//!   ([`crate::gravity`]); without an arm posture it adds none (counted).
 
 use std::collections::BTreeMap;
 
 use nalgebra::SVector;
 use serde::{Deserialize, Serialize};
 use teleop_control::ConfigError;
-use teleop_control::hand::{HandControllerConfig, HandMode, JointInput, ShadowHandController};
+use teleop_control::hand::{
+    HandControllerConfig, HandMode, HandOutput, JointInput, ShadowHandController,
+};
+use teleop_hardware::wire::{self, WireError};
+use teleop_hardware::{HandCommand, HandState};
+use teleop_interfaces::joints::SHADOW_FINGER_JOINTS as FINGER_JOINTS;
 use teleop_msgs::JointState;
 
-use crate::hand_gravity::HandGravity;
-use crate::hardware::{FINGER_JOINTS, HandCommand, HandState};
-use crate::wire::{self, WireError};
+use crate::gravity::HandGravity;
+
+/// The hardware command for a control law's output.
+pub fn hand_command(out: HandOutput<17>) -> HandCommand {
+    match out {
+        HandOutput::Effort(t) => HandCommand::Effort(t),
+        HandOutput::Position(q) => HandCommand::Position(q),
+    }
+}
 
 /// Settings of the hand supervisor; the control laws' gains are in `controller`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -367,10 +378,10 @@ impl HandSupervisor {
             ),
         };
         let command = match out {
-            Ok(o) => o.into(),
+            Ok(o) => hand_command(o),
             Err(_) => {
                 self.state_rejections += 1;
-                (*self.controller.last_output()).into()
+                hand_command(*self.controller.last_output())
             }
         };
         HandStep { command, hold }

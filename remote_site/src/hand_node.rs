@@ -1,24 +1,30 @@
 //! The Shadow hand controller node: finger targets from the operator site's hand
 //! inference and the enable switch from the bus, the hand through a [`HandHardware`],
-//! the [`HandSupervisor`] core in between, at the configured rate.
+//! the [`HandSupervisor`] core in between, at the configured rate, on the node runner.
 
 use std::time::Duration;
 
+use nalgebra::SVector;
 use serde::{Deserialize, Serialize};
-use teleop_bus::{Bus, BusConfig, NodeConfig, StatusReporter, topics};
-use teleop_msgs::{Lifecycle, unix_seconds_now as now_s};
-use tokio::time::MissedTickBehavior;
+use teleop_bus::{Bus, BusConfig, NodeWatch, Subscriber};
+use teleop_hardware::{ArmHardware, HandCommand, HandHardware};
+use teleop_hardware_bus::{BusArm, BusHand};
+use teleop_interfaces::hardware::{PR2_ARM, SHADOW_HAND};
+use teleop_interfaces::{Site, nodes, topics};
+use teleop_msgs::{JointState, Lifecycle, OperatorInput};
+use teleop_node::{FinalReport, Node, NodeConfig};
 
-use crate::bus_hardware::{BusArm, BusHand};
+use crate::arm_node::check_controller_links;
 use crate::hand_controller::{EnableSample, HandSupervisor, HandSupervisorConfig};
-use crate::hardware::{ArmHardware, HandHardware};
 
 /// Configuration of the `shadow_hand_controller` node.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct HandNodeConfig {
     pub node_name: String,
-    /// Nodes of the operator site; the hand holds when none of them is alive.
+    /// Nodes of the operator site; the hand holds when none of them is alive. Default:
+    /// the operator-site nodes of the node table and `hand_inference` (the source of
+    /// the finger targets, built with the hand-inference stage).
     pub operator_site_nodes: Vec<String>,
     /// The hand hardware's state counts as lost after this long, s.
     pub hardware_timeout_s: f64,
@@ -29,8 +35,11 @@ pub struct HandNodeConfig {
 impl Default for HandNodeConfig {
     fn default() -> Self {
         Self {
-            node_name: "shadow_hand_controller".into(),
-            operator_site_nodes: vec!["wrist_tracker".into(), "hand_inference".into()],
+            node_name: SHADOW_HAND.controller_node.into(),
+            operator_site_nodes: nodes::of_site(Site::Local)
+                .chain([nodes::HAND_INFERENCE])
+                .map(String::from)
+                .collect(),
             hardware_timeout_s: 0.05,
             hand: HandSupervisorConfig::default(),
             bus: BusConfig::default(),
@@ -43,93 +52,166 @@ impl NodeConfig for HandNodeConfig {
         &mut self.bus
     }
     fn validate(&self) -> Result<(), String> {
-        crate::bus_hardware::check_controller_links(
-            &self.operator_site_nodes,
-            self.hardware_timeout_s,
-        )?;
+        check_controller_links(&self.operator_site_nodes, self.hardware_timeout_s)?;
         self.hand.validate().map_err(|e| format!("hand.{e}"))
     }
 }
 
-/// Runs the node until `duration` elapses (forever if `None`) or Ctrl-C.
-///
-/// # Errors
-/// Bus or configuration errors.
-pub async fn run(cfg: HandNodeConfig, duration: Option<Duration>) -> anyhow::Result<()> {
-    let bus = Bus::open(&cfg.node_name, &cfg.bus).await?;
-    let target_sub = bus.subscriber(&topics::HAND_JOINT_TARGETS).await?;
-    let input_sub = bus.subscriber(&topics::OPERATOR_INPUT).await?;
-    let watch = bus.watch_nodes().await?;
-    let status = StatusReporter::new(&bus).await?;
-    let mut hw = BusHand::new(&bus, cfg.hardware_timeout_s).await?;
-    // The arm's posture orients the hand for gravity compensation (read-only).
-    let mut arm = BusArm::monitor(&bus, cfg.hardware_timeout_s).await?;
-    let mut arm_position: Option<nalgebra::SVector<f64, 7>> = None;
-    let (lower, upper) = HandSupervisor::shadow_hand_limits()?;
-    let mut hand = HandSupervisor::new(cfg.hand, lower, upper)?;
-    tracing::info!(node = %cfg.node_name, rate_hz = cfg.hand.rate_hz, mode = ?hand.mode(),
-        "Shadow hand controller running; holding until targets arrive with the enable switch held");
+/// The node: subscriptions, the hand, the arm (read-only, for gravity), the supervisor.
+#[derive(Debug)]
+pub struct HandNode {
+    operator_site_nodes: Vec<String>,
+    gravity_compensation: bool,
+    rate_hz: f64,
+    target_sub: Subscriber<JointState>,
+    input_sub: Subscriber<OperatorInput>,
+    watch: NodeWatch,
+    hw: BusHand,
+    arm: BusArm<7>,
+    arm_position: Option<SVector<f64, 7>>,
+    /// The hand's last measured posture (what it holds when the node stops).
+    hand_position: Option<SVector<f64, 17>>,
+    hand: HandSupervisor,
+    enable: Option<EnableSample>,
+    hardware_errors: u64,
+    hardware_ok: bool,
+    last_error: String,
+}
 
-    let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / cfg.hand.rate_hz));
-    tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
-    let mut status_tick = tokio::time::interval(Duration::from_secs(1));
-    let stop = teleop_bus::node::stop_signal(duration);
-    tokio::pin!(stop);
-    let mut enable: Option<EnableSample> = None;
-    let mut hardware_errors = 0u64;
-    let mut last_error = String::new();
-    loop {
-        tokio::select! {
-            _ = &mut stop => break,
-            _ = status_tick.tick() => {
-                let mut counters = hand.named_counters();
-                counters.push(("hand.hardware_errors".into(), hardware_errors));
-                counters.push(("hand.bad_hardware_states".into(), hw.bad_states()));
-                counters.extend(target_sub.named_counters());
-                counters.extend(input_sub.named_counters());
-                let state = if hand.hold_reason_now().is_none() { Lifecycle::Active } else { Lifecycle::Inactive };
-                if let Err(e) = status.report(state, &counters, &last_error) {
-                    tracing::warn!("status: {e}");
+impl HandNode {
+    /// Declares the node's subscriptions and hardware clients on `bus`.
+    ///
+    /// # Errors
+    /// Bus declarations or the supervisor's configuration.
+    pub async fn new(cfg: &HandNodeConfig, bus: &Bus) -> anyhow::Result<Self> {
+        let (lower, upper) = HandSupervisor::shadow_hand_limits()?;
+        let hand = HandSupervisor::new(cfg.hand, lower, upper)?;
+        tracing::info!(rate_hz = cfg.hand.rate_hz, mode = ?hand.mode(),
+            "Shadow hand controller: holding until targets arrive with the enable switch held");
+        Ok(Self {
+            operator_site_nodes: cfg.operator_site_nodes.clone(),
+            gravity_compensation: cfg.hand.gravity_compensation,
+            rate_hz: cfg.hand.rate_hz,
+            target_sub: bus.subscriber(&topics::HAND_JOINT_TARGETS).await?,
+            input_sub: bus.subscriber(&topics::OPERATOR_INPUT).await?,
+            watch: bus.watch_nodes().await?,
+            hw: BusHand::new(bus, &SHADOW_HAND, cfg.hardware_timeout_s).await?,
+            // The arm's posture orients the hand for gravity compensation (read-only).
+            arm: BusArm::monitor(bus, &PR2_ARM, cfg.hardware_timeout_s).await?,
+            arm_position: None,
+            hand_position: None,
+            hand,
+            enable: None,
+            hardware_errors: 0,
+            hardware_ok: false,
+            last_error: String::new(),
+        })
+    }
+
+    /// The supervisor core.
+    pub fn supervisor(&self) -> &HandSupervisor {
+        &self.hand
+    }
+}
+
+impl Node for HandNode {
+    fn period(&self) -> Duration {
+        Duration::from_secs_f64(1.0 / self.rate_hz)
+    }
+
+    fn tick(&mut self, now_s: f64) {
+        while let Some(r) = self.target_sub.try_recv() {
+            if let Err(e) = self.hand.accept_target(&r.msg, r.receive_time_s()) {
+                self.last_error = e.to_string();
+            }
+        }
+        while let Some(r) = self.input_sub.try_recv() {
+            self.enable = Some(EnableSample {
+                received_s: r.receive_time_s(),
+                enable: r.msg.enable,
+            });
+        }
+        let alive = self
+            .operator_site_nodes
+            .iter()
+            .any(|n| self.watch.is_alive(n));
+        if self.gravity_compensation {
+            // A stale arm state keeps the last posture: the hand's orientation changes
+            // only with the arm, and the arm stops on its own.
+            if let Ok(a) = self.arm.read(now_s) {
+                self.arm_position = Some(a.position_rad);
+            }
+        }
+        match self.hw.read(now_s) {
+            Ok(state) => {
+                self.hardware_ok = true;
+                self.hand_position = Some(state.position_rad);
+                let out = self.hand.step(
+                    now_s,
+                    self.enable,
+                    alive,
+                    &state,
+                    self.arm_position.as_ref(),
+                );
+                if let Err(e) = self.hw.write(now_s, &out.command) {
+                    self.hardware_errors += 1;
+                    self.last_error = e.to_string();
                 }
             }
-            _ = tick.tick() => {
-                while let Some(r) = target_sub.try_recv() {
-                    if let Err(e) = hand.accept_target(&r.msg, r.receive_time_s()) {
-                        last_error = e.to_string();
-                    }
-                }
-                while let Some(r) = input_sub.try_recv() {
-                    enable = Some(EnableSample { received_s: r.receive_time_s(), enable: r.msg.enable });
-                }
-                let alive = cfg.operator_site_nodes.iter().any(|n| watch.is_alive(n));
-                if cfg.hand.gravity_compensation {
-                    // A stale arm state keeps the last posture: the hand's orientation
-                    // changes only with the arm, and the arm stops on its own.
-                    if let Ok(a) = arm.read() {
-                        arm_position = Some(a.position_rad);
-                    }
-                }
-                match hw.read() {
-                    Ok(state) => {
-                        let out = hand.step(now_s(), enable, alive, &state, arm_position.as_ref());
-                        if let Err(e) = hw.write(&out.command) {
-                            hardware_errors += 1;
-                            last_error = e.to_string();
-                        }
-                    }
-                    Err(e) => {
-                        hardware_errors += 1;
-                        last_error = e.to_string();
-                        if let Some(cmd) = hand.hardware_lost() {
-                            let _ = hw.write(&cmd);
-                        }
-                    }
+            Err(e) => {
+                self.hardware_ok = false;
+                self.hardware_errors += 1;
+                self.last_error = e.to_string();
+                if let Some(cmd) = self.hand.hardware_lost()
+                    && let Err(e) = self.hw.write(now_s, &cmd)
+                {
+                    self.last_error = e.to_string();
                 }
             }
         }
     }
-    let _ = status.report(Lifecycle::Finalized, &hand.named_counters(), &last_error);
-    drop((target_sub, input_sub, watch, status, hw, arm));
-    bus.close().await?;
-    Ok(())
+
+    fn state(&self) -> Lifecycle {
+        if !self.hardware_ok {
+            Lifecycle::Fault
+        } else if self.hand.hold_reason_now().is_none() {
+            Lifecycle::Active
+        } else {
+            Lifecycle::Inactive
+        }
+    }
+
+    fn counters(&self) -> Vec<(String, u64)> {
+        let mut counters = self.hand.named_counters();
+        counters.push(("hand.hardware_errors".into(), self.hardware_errors));
+        counters.push(("hand.bad_hardware_states".into(), self.hw.bad_states()));
+        counters.extend(self.target_sub.named_counters());
+        counters.extend(self.input_sub.named_counters());
+        counters
+    }
+
+    fn last_error(&self) -> String {
+        self.last_error.clone()
+    }
+
+    /// The hand holds the posture it is in through its own position servo: it stops
+    /// moving, and a grasped object is neither dropped nor squeezed harder.
+    fn shutdown(&mut self, now_s: f64) {
+        if let Some(q) = self.hand_position
+            && let Err(e) = self.hw.write(now_s, &HandCommand::Position(q))
+        {
+            tracing::warn!("holding the hand at shutdown: {e}");
+        }
+    }
+}
+
+/// Runs the node on the system clock until `duration` elapses (forever if `None`) or
+/// SIGINT/SIGTERM.
+///
+/// # Errors
+/// Bus or configuration errors.
+pub async fn run(cfg: HandNodeConfig, duration: Option<Duration>) -> anyhow::Result<FinalReport> {
+    let bus = Bus::open(&cfg.node_name, &cfg.bus).await?;
+    let node = HandNode::new(&cfg, &bus).await?;
+    teleop_node::run(bus, node, teleop_node::stop_signal(duration)).await
 }

@@ -1,20 +1,31 @@
-//! The simulator process: owns the simulated world (PR2 arm, Shadow hand, objects) and
-//! offers it to the controllers over the `teleop/hw/...` topics, as a robot driver
-//! would (the way Gazebo stands in for hardware). Steps in real time; commands that fail
-//! to convert are counted and ignored (the previous command stays in force, and the arm
-//! stops on its own when commands stop arriving).
+//! The simulator process (`remote_sim`): owns the simulated world (PR2 arm, Shadow hand,
+//! objects, camera views) and offers it to the site's controllers over the hardware
+//! topics, as the robots' drivers would (the way Gazebo stands in for hardware).
+//!
+//! It is the process that owns the hardware, so the last safety layer lives here: the
+//! arm and the hand are wrapped in [`SafeArm`] / [`SafeHand`], and the endpoints take
+//! commands only from the interface's controller node. A command from anyone else is
+//! dropped and counted; every command that gets through is limited (joint limits,
+//! end-effector speed, effort, command timeout). The world steps in real time on the
+//! node's clock.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
-use teleop_bus::{Bus, BusConfig, NodeConfig, StatusReporter, topics};
-use teleop_msgs::Lifecycle;
-use tokio::time::MissedTickBehavior;
-
-use crate::sim::{
-    CameraViewsConfig, CupGraspConfig, SceneCameras, TouchingTaskConfig, View, World, WorldConfig,
+use teleop_bus::{Bus, BusConfig, Publisher};
+use teleop_hardware::safety::{
+    ArmSafety, ArmSafetyConfig, HandLimits, HandSafety, HandSafetyConfig,
 };
-use crate::wire;
+use teleop_hardware::{ArmHardware, HandHardware, SafeArm, SafeHand};
+use teleop_hardware_bus::{ArmEndpoint, HandEndpoint};
+use teleop_interfaces::hardware::{PR2_ARM, SHADOW_HAND};
+use teleop_interfaces::topics;
+use teleop_msgs::{Image, Lifecycle};
+use teleop_node::{FinalReport, Node, NodeConfig, Periodic};
+use teleop_sim::{
+    CameraViewsConfig, CupGraspConfig, SceneCameras, SharedWorld, SimArm, SimHand,
+    TouchingTaskConfig, View, WORKING_POSTURE_RAD, World, WorldConfig,
+};
 
 /// Which world to build.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -28,9 +39,33 @@ pub enum SceneKind {
     CupGrasp,
 }
 
-/// Arm posture the node starts in: elbow bent, away from the straight-arm singularity,
-/// so relative motion is possible in every direction.
-pub const WORKING_POSTURE_RAD: [f64; 7] = [-0.5, 0.3, -1.0, -1.4, 0.3, -0.1, 0.1];
+/// The hardware safety layer of the simulated robots.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SimSafetyConfig {
+    /// The only node whose arm commands are taken.
+    pub arm_controller_node: String,
+    /// The only node whose hand commands are taken.
+    pub hand_controller_node: String,
+    pub arm: ArmSafetyConfig,
+    pub hand: HandSafetyConfig,
+}
+
+impl Default for SimSafetyConfig {
+    fn default() -> Self {
+        Self {
+            arm_controller_node: PR2_ARM.controller_node.into(),
+            hand_controller_node: SHADOW_HAND.controller_node.into(),
+            arm: ArmSafetyConfig {
+                // The palm origin and the fingertips' reach (0.2 m out along the palm's
+                // z, past the straight fingers' tips).
+                tool_points_m: vec![[0.0, 0.0, 0.0], [0.0, 0.0, 0.2]],
+                ..ArmSafetyConfig::default()
+            },
+            hand: HandSafetyConfig::default(),
+        }
+    }
+}
 
 /// Configuration of the `remote_sim` node.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -38,7 +73,7 @@ pub const WORKING_POSTURE_RAD: [f64; 7] = [-0.5, 0.3, -1.0, -1.4, 0.3, -0.1, 0.1
 pub struct SimNodeConfig {
     pub node_name: String,
     pub scene: SceneKind,
-    /// Rate of the state messages, Hz.
+    /// Rate of the state messages (and of the world's catching up with the clock), Hz.
     pub state_rate_hz: f64,
     /// World settings for `scene = "free"`.
     pub world: WorldConfig,
@@ -47,6 +82,8 @@ pub struct SimNodeConfig {
     /// The top and side camera views, rendered from the world and published on
     /// `teleop/hw/camera/{top,side}/image` as a camera driver would.
     pub cameras: CameraViewsConfig,
+    /// The safety layer around the simulated arm and hand.
+    pub safety: SimSafetyConfig,
     pub bus: BusConfig,
 }
 
@@ -55,7 +92,7 @@ impl Default for SimNodeConfig {
         Self {
             node_name: "remote_sim".into(),
             scene: SceneKind::Touching,
-            state_rate_hz: topics::SIM_ARM_STATE.spec.rate_hz,
+            state_rate_hz: topics::HW_PR2_ARM_STATE.spec.rate_hz,
             world: WorldConfig::default(),
             touching: TouchingTaskConfig {
                 arm_posture_rad: WORKING_POSTURE_RAD,
@@ -63,6 +100,7 @@ impl Default for SimNodeConfig {
             },
             cup_grasp: CupGraspConfig::default(),
             cameras: CameraViewsConfig::default(),
+            safety: SimSafetyConfig::default(),
             bus: BusConfig::default(),
         }
     }
@@ -85,6 +123,22 @@ impl NodeConfig for SimNodeConfig {
         self.cameras
             .validate()
             .map_err(|e| format!("cameras: {e}"))?;
+        self.safety
+            .arm
+            .validate()
+            .map_err(|e| format!("safety.arm: {e}"))?;
+        self.safety
+            .hand
+            .validate()
+            .map_err(|e| format!("safety.hand: {e}"))?;
+        for (field, node) in [
+            ("arm_controller_node", &self.safety.arm_controller_node),
+            ("hand_controller_node", &self.safety.hand_controller_node),
+        ] {
+            if node.is_empty() {
+                return Err(format!("safety.{field} must name a node"));
+            }
+        }
         Ok(())
     }
 }
@@ -101,88 +155,184 @@ pub fn build_world(cfg: &SimNodeConfig) -> anyhow::Result<World> {
     })
 }
 
-/// Runs the simulator until `duration` elapses (forever if `None`) or Ctrl-C.
+/// The simulator node: the world, the robots behind their safety layers, the bus
+/// endpoints, the camera views.
+#[derive(Debug)]
+pub struct SimNode {
+    period: Duration,
+    world: SharedWorld,
+    arm: SafeArm<7, SimArm>,
+    hand: SafeHand<SimHand>,
+    arm_endpoint: ArmEndpoint<7>,
+    hand_endpoint: HandEndpoint,
+    cameras: Option<CameraViews>,
+    camera_due: Periodic,
+    /// Node-clock time matching sim time `sim_start_s`.
+    start_s: Option<f64>,
+    sim_start_s: f64,
+    hardware_errors: u64,
+    last_error: String,
+}
+
+impl SimNode {
+    /// Builds the world and declares the endpoints on `bus`.
+    ///
+    /// # Errors
+    /// World, safety or camera configuration errors; bus declarations.
+    pub async fn new(cfg: &SimNodeConfig, bus: &Bus) -> anyhow::Result<Self> {
+        let world = build_world(cfg)?;
+        let cameras = CameraViews::open(bus, &cfg.cameras, &world).await?;
+        let sim_start_s = world.time_s();
+        let (world, sim_arm, sim_hand) = teleop_sim::share(world);
+        let arm_safety = ArmSafety::new(
+            teleop_kinematics::robots::pr2_arm_chain()?,
+            cfg.safety.arm.clone(),
+        )?;
+        let hand_safety = HandSafety::new(HandLimits::shadow()?, cfg.safety.hand)?;
+        tracing::info!(scene = ?cfg.scene, arm_from = %cfg.safety.arm_controller_node,
+            hand_from = %cfg.safety.hand_controller_node, "simulator running in real time");
+        Ok(Self {
+            period: Duration::from_secs_f64(1.0 / cfg.state_rate_hz),
+            world,
+            arm: SafeArm::new(sim_arm, arm_safety),
+            hand: SafeHand::new(sim_hand, hand_safety),
+            arm_endpoint: ArmEndpoint::new(bus, &PR2_ARM, &cfg.safety.arm_controller_node).await?,
+            hand_endpoint: HandEndpoint::new(bus, &SHADOW_HAND, &cfg.safety.hand_controller_node)
+                .await?,
+            cameras,
+            camera_due: Periodic::at_rate(cfg.cameras.rate_hz),
+            start_s: None,
+            sim_start_s,
+            hardware_errors: 0,
+            last_error: String::new(),
+        })
+    }
+
+    /// The world (ground truth).
+    pub fn world(&self) -> &SharedWorld {
+        &self.world
+    }
+
+    fn fail(&mut self, what: &str, e: impl std::fmt::Display) {
+        self.hardware_errors += 1;
+        self.last_error = format!("{what}: {e}");
+    }
+}
+
+impl Node for SimNode {
+    fn period(&self) -> Duration {
+        self.period
+    }
+
+    fn tick(&mut self, now_s: f64) {
+        // Commands from the controllers, through the safety layer (a period without a
+        // command is filtered too: the command timeout).
+        let arm = match self.arm_endpoint.take_command() {
+            Some(c) => self.arm.write(now_s, &c),
+            None => self.arm.idle(now_s),
+        };
+        if let Err(e) = arm {
+            self.fail("arm", e);
+        }
+        let hand = match self.hand_endpoint.take_command() {
+            Some(c) => self.hand.write(now_s, &c),
+            None => self.hand.idle(now_s),
+        };
+        if let Err(e) = hand {
+            self.fail("hand", e);
+        }
+        // Catch up with the clock (at most 0.1 s per tick after a stall).
+        let start = *self.start_s.get_or_insert(now_s);
+        let Ok(mut world) = self.world.lock() else {
+            self.fail("world", "lock poisoned");
+            return;
+        };
+        let lag = (now_s - start) - (world.time_s() - self.sim_start_s);
+        if lag > 0.0 {
+            world.step(lag.min(0.1));
+        }
+        let (arm_state, hand_state) = (world.arm_state(), world.hand_state());
+        let render = self.cameras.is_some() && self.camera_due.due(now_s);
+        let camera = if render {
+            self.cameras.as_mut().map(|c| c.render(&world, now_s))
+        } else {
+            None
+        };
+        drop(world);
+        if let Err(e) = self.arm_endpoint.publish_state(&arm_state) {
+            self.fail("arm state", e);
+        }
+        if let Err(e) = self.hand_endpoint.publish_state(&hand_state) {
+            self.fail("hand state", e);
+        }
+        if let Some(Err(e)) = camera {
+            self.fail("cameras", e);
+        }
+    }
+
+    fn state(&self) -> Lifecycle {
+        Lifecycle::Active
+    }
+
+    fn counters(&self) -> Vec<(String, u64)> {
+        let sim_time_ms = self
+            .world
+            .lock()
+            // Non-negative and far below 2^64 ms.
+            .map(|w| {
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                let ms = (w.time_s() * 1e3) as u64;
+                ms
+            })
+            .unwrap_or(0);
+        let mut out = vec![
+            ("sim.time_ms".to_owned(), sim_time_ms),
+            ("sim.hardware_errors".to_owned(), self.hardware_errors),
+            (
+                "sim.camera_frames".to_owned(),
+                self.cameras.as_ref().map_or(0, |c| c.frames),
+            ),
+        ];
+        out.extend(self.arm_endpoint.counters());
+        out.extend(self.hand_endpoint.counters());
+        out.extend(self.arm.safety().counters().named("safety.arm"));
+        out.extend(self.hand.safety().counters().named("safety.hand"));
+        out
+    }
+
+    fn last_error(&self) -> String {
+        if !self.last_error.is_empty() {
+            return self.last_error.clone();
+        }
+        for e in [
+            self.arm_endpoint.last_error(),
+            self.hand_endpoint.last_error(),
+        ] {
+            if !e.is_empty() {
+                return e.to_owned();
+            }
+        }
+        String::new()
+    }
+
+    /// The robots stop: the arm brakes (zero velocity), the hand holds its posture.
+    fn shutdown(&mut self, now_s: f64) {
+        let stop = teleop_hardware::ArmCommand::stop();
+        if let Err(e) = self.arm.write(now_s, &stop) {
+            tracing::warn!("stopping the arm: {e}");
+        }
+    }
+}
+
+/// Runs the simulator on the system clock until `duration` elapses (forever if `None`)
+/// or SIGINT/SIGTERM.
 ///
 /// # Errors
 /// Bus or configuration errors.
-pub async fn run(cfg: SimNodeConfig, duration: Option<Duration>) -> anyhow::Result<()> {
-    let mut world = build_world(&cfg)?;
+pub async fn run(cfg: SimNodeConfig, duration: Option<Duration>) -> anyhow::Result<FinalReport> {
     let bus = Bus::open(&cfg.node_name, &cfg.bus).await?;
-    let arm_cmd = bus.subscriber(&topics::SIM_ARM_COMMAND).await?;
-    let hand_cmd = bus.subscriber(&topics::SIM_HAND_COMMAND).await?;
-    let arm_state = bus.publisher(&topics::SIM_ARM_STATE).await?;
-    let hand_state = bus.publisher(&topics::SIM_HAND_STATE).await?;
-    let tactile = bus.publisher(&topics::SIM_HAND_TACTILE).await?;
-    let status = StatusReporter::new(&bus).await?;
-    let mut cameras = CameraViews::open(&bus, &cfg.cameras, &world).await?;
-    tracing::info!(node = %cfg.node_name, scene = ?cfg.scene, "simulator running in real time");
-
-    let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / cfg.state_rate_hz));
-    tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
-    let mut status_tick = tokio::time::interval(Duration::from_secs(1));
-    // Disabled cameras never tick; the fallback only keeps an invalid rate from panicking.
-    let camera_period =
-        Duration::try_from_secs_f64(1.0 / cfg.cameras.rate_hz).unwrap_or(Duration::from_secs(1));
-    let mut camera_tick = tokio::time::interval(camera_period);
-    camera_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
-    let stop = teleop_bus::node::stop_signal(duration);
-    tokio::pin!(stop);
-    let start = Instant::now();
-    let sim_start = world.time_s();
-    let mut bad_commands = 0u64;
-    let mut last_error = String::new();
-    loop {
-        tokio::select! {
-            _ = &mut stop => break,
-            _ = status_tick.tick() => {
-                let counters = vec![
-                    ("sim.time_ms".to_owned(), (world.time_s() * 1e3) as u64),
-                    ("sim.bad_commands".to_owned(), bad_commands),
-                    ("sim.camera_frames".to_owned(), cameras.as_ref().map_or(0, |c| c.frames)),
-                ];
-                let _ = status.report(Lifecycle::Active, &counters, &last_error);
-            }
-            _ = tick.tick() => {
-                while let Some(r) = arm_cmd.try_recv() {
-                    match wire::arm_command(&r.msg) {
-                        Ok(c) => world.command_arm(&c.velocity_rad_s),
-                        Err(e) => { bad_commands += 1; last_error = format!("arm command: {e}"); }
-                    }
-                }
-                while let Some(r) = hand_cmd.try_recv() {
-                    match wire::hand_command(&r.msg) {
-                        Ok(c) => world.command_hand(&c),
-                        Err(e) => { bad_commands += 1; last_error = format!("hand command: {e}"); }
-                    }
-                }
-                // Catch up with the wall clock.
-                let lag = start.elapsed().as_secs_f64() - (world.time_s() - sim_start);
-                if lag > 0.0 {
-                    world.step(lag.min(0.1));
-                }
-                let hs = world.hand_state();
-                for r in [
-                    arm_state.put(&wire::arm_state_msg(&world.arm_state())),
-                    hand_state.put(&wire::hand_state_msg(&hs)),
-                ] {
-                    if let Err(e) = r { last_error = e.to_string(); }
-                }
-                if let Err(e) = tactile.put(&wire::tactile_msg(&hs)) { last_error = e.to_string(); }
-            }
-            _ = camera_tick.tick(), if cameras.is_some() => {
-                if let Some(c) = cameras.as_mut()
-                    && let Err(e) = c.publish(&world)
-                {
-                    last_error = format!("cameras: {e}");
-                }
-            }
-        }
-    }
-    drop((
-        arm_cmd, hand_cmd, arm_state, hand_state, tactile, status, cameras,
-    ));
-    bus.close().await?;
-    Ok(())
+    let node = SimNode::new(&cfg, &bus).await?;
+    teleop_node::run(bus, node, teleop_node::stop_signal(duration)).await
 }
 
 /// The two camera views as the simulator publishes them: rendered from the world at the
@@ -190,9 +340,9 @@ pub async fn run(cfg: SimNodeConfig, duration: Option<Duration>) -> anyhow::Resu
 #[derive(Debug)]
 struct CameraViews {
     cameras: SceneCameras,
-    publishers: [teleop_bus::Publisher<teleop_msgs::Image>; 2],
+    publishers: [Publisher<Image>; 2],
     /// One message per view, reused between frames.
-    images: [teleop_msgs::Image; 2],
+    images: [Image; 2],
     frames: u64,
 }
 
@@ -209,17 +359,20 @@ impl CameraViews {
         Ok(Some(Self {
             cameras: SceneCameras::new(world, config)?,
             publishers: [
-                bus.publisher(&topics::SIM_CAMERA_TOP).await?,
-                bus.publisher(&topics::SIM_CAMERA_SIDE).await?,
+                bus.publisher(&topics::HW_CAMERA_TOP).await?,
+                bus.publisher(&topics::HW_CAMERA_SIDE).await?,
             ],
             images: Default::default(),
             frames: 0,
         }))
     }
 
-    fn publish(&mut self, world: &World) -> anyhow::Result<()> {
+    /// Renders both views and publishes them, stamped `now_s` (node clock).
+    fn render(&mut self, world: &World, now_s: f64) -> anyhow::Result<()> {
         self.cameras.render(world)?;
-        let stamp = teleop_msgs::Time::now();
+        // Seconds since the epoch: far inside the i64 ns range.
+        #[allow(clippy::cast_possible_truncation)]
+        let stamp = teleop_msgs::Time::from_nanos((now_s * 1e9) as i64);
         for ((view, publisher), image) in View::ALL
             .into_iter()
             .zip(&self.publishers)

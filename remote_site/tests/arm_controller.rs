@@ -4,10 +4,10 @@
 
 use nalgebra::{Isometry3, SVector, Translation3, UnitQuaternion, Vector3};
 use teleop_kinematics::robots;
+use teleop_remote_site::arm_controller::ArmState;
 use teleop_remote_site::arm_controller::{
     ArmController, ArmControllerConfig, ArmInputs, OperatorSample, StopReason, WristSample,
 };
-use teleop_remote_site::hardware::ArmState;
 
 const DT: f64 = 1.0 / 30.0;
 

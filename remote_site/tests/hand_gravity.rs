@@ -3,9 +3,9 @@
 #![allow(clippy::unwrap_used)]
 
 use nalgebra::{SVector, Vector3};
-use teleop_remote_site::hand_gravity::HandGravity;
-use teleop_remote_site::hardware::HandCommand;
-use teleop_remote_site::sim::{World, WorldConfig};
+use teleop_hardware::HandCommand;
+use teleop_remote_site::gravity::HandGravity;
+use teleop_sim::{World, WorldConfig};
 
 #[test]
 fn compensation_holds_the_fingers_still_and_without_it_they_sag() {

@@ -4,13 +4,14 @@
 #![allow(clippy::unwrap_used)]
 
 use nalgebra::SVector;
+use teleop_hardware::HandCommand;
+use teleop_interfaces::joints::SHADOW_FINGER_JOINTS as FINGER_JOINTS;
+use teleop_interfaces::joints::finger_joint_index;
 use teleop_msgs::JointState;
 use teleop_remote_site::hand_controller::{
     EnableSample, HandSupervisor, HandSupervisorConfig, HoldReason, TargetRejection,
 };
-use teleop_remote_site::hand_scenarios::finger_joint_index;
-use teleop_remote_site::hardware::{FINGER_JOINTS, HandCommand};
-use teleop_remote_site::sim::{CupGraspConfig, World, WorldConfig};
+use teleop_sim::{CupGraspConfig, World, WorldConfig};
 
 const DT: f64 = 0.002;
 

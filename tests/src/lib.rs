@@ -4,6 +4,8 @@ use std::path::PathBuf;
 
 use teleop_bus::{BusConfig, ZenohSettings};
 
+pub mod scenarios;
+
 /// The repository root.
 pub fn repo_root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

@@ -1,7 +1,7 @@
 //! Operator-site wrist tracker node (simulated operator today).
 use clap::Parser;
-use teleop_bus::NodeArgs;
-use teleop_local_site::wrist_tracker::{self, WristTrackerConfig};
+use teleop_local_site::wrist_tracker;
+use teleop_node::NodeArgs;
 
 /// Publishes the operator's wrist pose and pedal state.
 #[derive(Debug, Parser)]
@@ -13,13 +13,6 @@ struct Cli {
 
 #[tokio::main]
 async fn main() -> anyhow::Result<()> {
-    teleop_bus::init_tracing();
-    Cli::parse()
-        .node
-        .run(|cfg: WristTrackerConfig, duration| async move {
-            let counters = wrist_tracker::run(cfg, duration).await?;
-            tracing::info!(?counters, "wrist tracker stopped");
-            anyhow::Ok(())
-        })
-        .await
+    teleop_node::init_tracing();
+    Cli::parse().node.run(wrist_tracker::run).await
 }

@@ -1,7 +1,7 @@
 //! Robot-site node: publishes joint states of both robots, the fingertip pressures and the
 //! remote camera views to the operator site.
 use clap::Parser;
-use teleop_bus::NodeArgs;
+use teleop_node::NodeArgs;
 use teleop_remote_site::feedback_node;
 
 /// Forwards the robot site's state to the operator site.
@@ -14,6 +14,6 @@ struct Cli {
 
 #[tokio::main]
 async fn main() -> anyhow::Result<()> {
-    teleop_bus::init_tracing();
+    teleop_node::init_tracing();
     Cli::parse().node.run(feedback_node::run).await
 }

@@ -1,6 +1,6 @@
 //! Robot-site node: PR2 arm relative control (clutch, IK, velocity law, watchdog).
 use clap::Parser;
-use teleop_bus::NodeArgs;
+use teleop_node::NodeArgs;
 use teleop_remote_site::arm_node;
 
 /// Drives the PR2 arm from the operator's relative wrist motion while the clutch is held.
@@ -13,6 +13,6 @@ struct Cli {
 
 #[tokio::main]
 async fn main() -> anyhow::Result<()> {
-    teleop_bus::init_tracing();
+    teleop_node::init_tracing();
     Cli::parse().node.run(arm_node::run).await
 }

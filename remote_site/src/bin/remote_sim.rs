@@ -1,6 +1,6 @@
 //! Robot-site simulator: the PR2 arm, the Shadow hand and the task objects, offered to the controllers over the hardware topics.
 use clap::Parser;
-use teleop_bus::NodeArgs;
+use teleop_node::NodeArgs;
 use teleop_remote_site::sim_node;
 
 /// Simulates the robot site's hardware in real time.
@@ -13,6 +13,6 @@ struct Cli {
 
 #[tokio::main]
 async fn main() -> anyhow::Result<()> {
-    teleop_bus::init_tracing();
+    teleop_node::init_tracing();
     Cli::parse().node.run(sim_node::run).await
 }

@@ -1,7 +1,7 @@
 //! Robot-site node: Shadow hand control (position, fixed-gain or adaptive impedance),
 //! with the hold watchdog.
 use clap::Parser;
-use teleop_bus::NodeArgs;
+use teleop_node::NodeArgs;
 use teleop_remote_site::hand_node;
 
 /// Drives the Shadow hand's 17 finger joints toward the operator's inferred hand posture.
@@ -14,6 +14,6 @@ struct Cli {
 
 #[tokio::main]
 async fn main() -> anyhow::Result<()> {
-    teleop_bus::init_tracing();
+    teleop_node::init_tracing();
     Cli::parse().node.run(hand_node::run).await
 }

@@ -1,14 +1,13 @@
-//! Node configuration shared by every binary: the Zenoh session settings and the bus
-//! protections, loaded from TOML with unknown fields rejected, plus the common
-//! command-line overrides.
+//! Bus settings of a node: the Zenoh session and the receive-side protections. Serde
+//! types with unknown fields rejected; loading files and command-line overrides are the
+//! node runner's (`teleop-node`).
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 /// Zenoh session mode.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Mode {
     /// Talks to other peers directly (default; no router needed on one LAN).
@@ -18,7 +17,8 @@ pub enum Mode {
 }
 
 impl Mode {
-    fn as_str(self) -> &'static str {
+    /// `"peer"` / `"client"`, as Zenoh names it.
+    pub fn as_str(self) -> &'static str {
         match self {
             Mode::Peer => "peer",
             Mode::Client => "client",
@@ -83,105 +83,12 @@ impl Default for BusConfig {
     }
 }
 
-/// Errors of configuration handling.
+/// A Zenoh setting the session refused.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ConfigError {
-    #[error("cannot read config file {path}: {source}")]
-    Read {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
-    #[error("invalid config file {path}: {message}")]
-    Parse { path: PathBuf, message: String },
-    #[error("invalid config value: {0}")]
-    Invalid(String),
-    #[error("cannot serialize config: {0}")]
-    Serialize(String),
     #[error("zenoh configuration rejected `{key}`: {message}")]
     Zenoh { key: String, message: String },
-}
-
-/// Reads a TOML config file into `T` (whose serde attributes reject unknown fields).
-///
-/// # Errors
-/// [`ConfigError::Read`] for a missing/unreadable file, [`ConfigError::Parse`] naming the
-/// offending field and line for bad content.
-pub fn load_toml<T: DeserializeOwned>(path: &Path) -> Result<T, ConfigError> {
-    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
-        path: path.to_owned(),
-        source,
-    })?;
-    parse_toml(&text).map_err(|message| ConfigError::Parse {
-        path: path.to_owned(),
-        message,
-    })
-}
-
-/// Parses TOML text into `T`; the error text names the field and position.
-///
-/// # Errors
-/// The parser's message.
-pub fn parse_toml<T: DeserializeOwned>(text: &str) -> Result<T, String> {
-    toml::from_str(text).map_err(|e| e.to_string().trim_end().to_owned())
-}
-
-/// Renders a config as TOML (for `--show-default-config`).
-///
-/// # Errors
-/// [`ConfigError::Serialize`] if the value cannot be expressed in TOML.
-pub fn to_toml<T: Serialize>(value: &T) -> Result<String, ConfigError> {
-    toml::to_string_pretty(value).map_err(|e| ConfigError::Serialize(e.to_string()))
-}
-
-/// Command-line options every binary takes (flatten into its clap parser).
-#[derive(Debug, Clone, Default, clap::Args)]
-pub struct ZenohArgs {
-    /// Zenoh mode (overrides the config file).
-    #[arg(long, value_enum)]
-    pub mode: Option<Mode>,
-    /// Endpoint to connect to, e.g. tcp/192.0.2.10:7447 (repeatable; replaces the
-    /// config's list).
-    #[arg(long, short = 'e')]
-    pub connect: Vec<String>,
-    /// Endpoint to listen on, e.g. tcp/0.0.0.0:7447 (repeatable; replaces the config's
-    /// list).
-    #[arg(long, short = 'l')]
-    pub listen: Vec<String>,
-    /// Zenoh JSON5 configuration file.
-    #[arg(long)]
-    pub zenoh_config: Option<PathBuf>,
-    /// Disable multicast scouting (use with --connect).
-    #[arg(long)]
-    pub no_multicast_scouting: bool,
-    /// ROS 2 domain id (overrides the config file).
-    #[arg(long)]
-    pub domain_id: Option<u32>,
-}
-
-impl ZenohArgs {
-    /// Applies the command-line overrides to `cfg`.
-    pub fn apply(&self, cfg: &mut BusConfig) {
-        if let Some(m) = self.mode {
-            cfg.zenoh.mode = m;
-        }
-        if !self.connect.is_empty() {
-            cfg.zenoh.connect = self.connect.clone();
-        }
-        if !self.listen.is_empty() {
-            cfg.zenoh.listen = self.listen.clone();
-        }
-        if let Some(p) = &self.zenoh_config {
-            cfg.zenoh.config_file = Some(p.clone());
-        }
-        if self.no_multicast_scouting {
-            cfg.zenoh.multicast_scouting = false;
-        }
-        if let Some(d) = self.domain_id {
-            cfg.domain_id = d;
-        }
-    }
 }
 
 impl ZenohSettings {
@@ -239,38 +146,11 @@ mod tests {
     use super::*;
 
     #[test]
-    fn unknown_field_is_named() {
-        let err = parse_toml::<BusConfig>("domain_id = 1\nclock_tolerance = 3\n")
-            .expect_err("unknown field must be rejected");
-        assert!(err.contains("clock_tolerance"), "{err}");
-        let err = parse_toml::<BusConfig>("[zenoh]\nmod = \"peer\"\n").expect_err("rejected");
-        assert!(err.contains("mod"), "{err}");
-    }
-
-    #[test]
-    fn default_round_trips_and_builds_a_zenoh_config() {
-        let d = BusConfig::default();
-        let text = to_toml(&d).expect("serializes");
-        let back: BusConfig = parse_toml(&text).expect("parses");
-        assert_eq!(back, d);
-        d.zenoh.to_zenoh().expect("default zenoh config is valid");
-    }
-
-    #[test]
-    fn cli_overrides() {
-        let mut cfg = BusConfig::default();
-        ZenohArgs {
-            mode: Some(Mode::Client),
-            connect: vec!["tcp/127.0.0.1:7447".into()],
-            no_multicast_scouting: true,
-            domain_id: Some(7),
-            ..Default::default()
-        }
-        .apply(&mut cfg);
-        assert_eq!(cfg.zenoh.mode, Mode::Client);
-        assert_eq!(cfg.domain_id, 7);
-        assert!(!cfg.zenoh.multicast_scouting);
-        cfg.zenoh.to_zenoh().expect("valid");
+    fn default_builds_a_zenoh_config() {
+        BusConfig::default()
+            .zenoh
+            .to_zenoh()
+            .expect("default zenoh config is valid");
     }
 
     #[test]
@@ -285,8 +165,7 @@ mod tests {
             config_file: Some("/nonexistent/zenoh.json5".into()),
             ..Default::default()
         };
-        assert!(s.to_zenoh().is_err());
-        let e = load_toml::<BusConfig>(Path::new("/nonexistent/x.toml")).expect_err("missing");
-        assert!(e.to_string().contains("/nonexistent/x.toml"), "{e}");
+        let e = s.to_zenoh().expect_err("missing file");
+        assert!(e.to_string().contains("/nonexistent/zenoh.json5"), "{e}");
     }
 }

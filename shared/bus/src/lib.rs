@@ -1,37 +1,34 @@
-//! Typed publish/subscribe over Zenoh 1.x, wire-compatible with ROS 2's rmw_zenoh.
+//! Typed publish/subscribe over Zenoh 1.x, wire-compatible with ROS 2's rmw_zenoh. The
+//! transport only: the topics themselves are named in `teleop-interfaces`, the node
+//! runner (command line, config files, status, shutdown) is `teleop-node`.
 //!
-//! * [`topics`]: the one table naming every topic (key, type, direction, rate, QoS).
-//! * [`Bus`]: a node's Zenoh session with its liveliness token; typed
-//!   [`Publisher`]/[`Subscriber`] on rmw_zenoh data keys, every sample carrying the
-//!   33-byte rmw_zenoh attachment ([`attachment`]).
+//! * [`Bus`]: a node's Zenoh session with its liveliness token and its [`Clock`];
+//!   typed [`Publisher`]/[`Subscriber`] on rmw_zenoh data keys, every sample carrying
+//!   the 33-byte rmw_zenoh attachment ([`attachment`]). QoS classes map to Zenoh
+//!   priorities, express delivery and queue depths ([`priority`]).
 //! * Receive-side protections ([`guard`]): out-of-order and stale samples are dropped
 //!   and counted; undecodable payloads are counted, logged (rate-limited) and never reach
-//!   the application.
+//!   the application. A [`SourcePolicy`] or a source lock
+//!   ([`Subscriber::lock_source`]) also drops samples of publishers that may not
+//!   deliver ([`directory`]: which node announced which publisher).
 //! * [`stats`]: per-topic counters and latency percentiles.
-//! * [`config`]: typed node configuration and the common command-line overrides.
+//! * [`config`]: the bus section of every node's configuration.
 
 pub mod attachment;
+pub mod clock;
 pub mod config;
+pub mod directory;
 pub mod guard;
 pub mod keys;
-pub mod node;
 mod session;
 pub mod stats;
-pub mod topics;
 
 pub use attachment::Attachment;
-pub use config::{BusConfig, ZenohArgs, ZenohSettings};
-pub use node::{NodeArgs, NodeConfig, StatusReporter};
-pub use session::{Bus, BusError, NodeEvent, NodeWatch, Publisher, Received, Subscriber};
+pub use clock::{Clock, ManualClock, SystemClock};
+pub use config::{BusConfig, Mode, ZenohSettings};
+pub use directory::{PublisherDirectory, PublisherInfo};
+pub use session::{
+    Bus, BusError, NodeEvent, NodeWatch, Publisher, Received, SeenPublisher, SourcePolicy,
+    Subscriber, priority,
+};
 pub use stats::StatsSnapshot;
-pub use topics::{Direction, QosClass, Topic, TopicSpec};
-
-/// Sets up `tracing` output on stderr; the level comes from `RUST_LOG` (default `info`).
-pub fn init_tracing() {
-    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,zenoh=warn"));
-    let _ = tracing_subscriber::fmt()
-        .with_env_filter(filter)
-        .with_writer(std::io::stderr)
-        .try_init();
-}

@@ -6,17 +6,41 @@ use std::sync::atomic::{AtomicI64, AtomicU32, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
-use teleop_msgs::{Message, unix_nanos_now};
+use teleop_interfaces::{QosClass, Topic, TopicSpec};
+use teleop_msgs::Message;
 use zenoh::Wait;
 use zenoh::liveliness::LivelinessToken;
-use zenoh::qos::CongestionControl;
+use zenoh::qos::{CongestionControl, Priority};
 
 use crate::attachment::{ATTACHMENT_LEN, Attachment};
+use crate::clock::{self, Clock};
 use crate::config::BusConfig;
+use crate::directory::{PublisherDirectory, PublisherInfo, gid_for_token};
 use crate::guard::{GuardSettings, ReceiveGuard, Verdict};
 use crate::keys::{self, EntityKind, GraphEntity};
 use crate::stats::{Event, StatsSnapshot, TopicStats};
-use crate::topics::{Topic, TopicSpec};
+
+/// The Zenoh priority of a QoS class.
+pub fn priority(qos: QosClass) -> Priority {
+    match qos {
+        QosClass::Control => Priority::RealTime,
+        QosClass::State => Priority::InteractiveHigh,
+        QosClass::Image => Priority::DataLow,
+        QosClass::Diagnostics => Priority::Background,
+    }
+}
+
+/// Which publishers may deliver samples to a subscriber.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub enum SourcePolicy {
+    /// Any publisher (the receive guards still apply).
+    #[default]
+    Any,
+    /// Only publishers that the node of this name announced (liveliness token) on this
+    /// topic; everything else is dropped and counted as foreign. How a robot's
+    /// hardware accepts commands from its own controller only.
+    Node(String),
+}
 
 /// Errors of the bus.
 #[derive(Debug, thiserror::Error)]
@@ -28,6 +52,8 @@ pub enum BusError {
     Codec(#[from] teleop_msgs::CodecError),
     #[error(transparent)]
     Config(#[from] crate::config::ConfigError),
+    #[error("subscriber on {topic}: the source policy names no node")]
+    EmptySourceNode { topic: &'static str },
     #[error("invalid node name `{0}`: use letters, digits and `_`")]
     NodeName(String),
 }
@@ -47,6 +73,9 @@ pub struct Bus {
     zid: String,
     config: BusConfig,
     next_entity: AtomicU32,
+    clock: Arc<dyn Clock>,
+    directory: Arc<PublisherDirectory>,
+    _directory_sub: zenoh::pubsub::Subscriber<()>,
     _node_token: LivelinessToken,
 }
 
@@ -61,12 +90,26 @@ impl std::fmt::Debug for Bus {
 }
 
 impl Bus {
-    /// Opens a Zenoh session for node `node_name` and announces the node's liveliness.
+    /// Opens a Zenoh session for node `node_name` on the system clock and announces the
+    /// node's liveliness.
     ///
     /// # Errors
     /// [`BusError`] if the name is invalid, the configuration is refused or the session
     /// cannot open.
     pub async fn open(node_name: &str, config: &BusConfig) -> Result<Self, BusError> {
+        Self::open_with_clock(node_name, config, clock::system()).await
+    }
+
+    /// [`Bus::open`] with the node's clock: source timestamps of published samples and
+    /// receive times of accepted ones come from `clock`.
+    ///
+    /// # Errors
+    /// As [`Bus::open`].
+    pub async fn open_with_clock(
+        node_name: &str,
+        config: &BusConfig,
+        clock: Arc<dyn Clock>,
+    ) -> Result<Self, BusError> {
         if node_name.is_empty()
             || !node_name
                 .chars()
@@ -94,14 +137,48 @@ impl Bus {
             .declare_token(keys::liveliness_key(&node, ""))
             .await
             .map_err(zerr("declare node liveliness token"))?;
+        let directory = PublisherDirectory::new();
+        let cb_directory = Arc::clone(&directory);
+        let directory_sub = session
+            .liveliness()
+            .declare_subscriber(format!(
+                "{}/{}/*/*/*/MP/**",
+                keys::LIVELINESS_PREFIX,
+                config.domain_id
+            ))
+            .history(true)
+            .callback(move |sample: zenoh::sample::Sample| {
+                let alive = sample.kind() == zenoh::sample::SampleKind::Put;
+                cb_directory.update(sample.key_expr().as_str(), alive);
+            })
+            .await
+            .map_err(zerr("declare publisher directory subscriber"))?;
         Ok(Self {
             session,
             node_name: node_name.to_owned(),
             zid,
             config: config.clone(),
             next_entity: AtomicU32::new(1),
+            clock,
+            directory,
+            _directory_sub: directory_sub,
             _node_token: token,
         })
+    }
+
+    /// The node's clock.
+    pub fn clock(&self) -> &Arc<dyn Clock> {
+        &self.clock
+    }
+
+    /// Now on the node's clock, s since the Unix epoch.
+    pub fn now_s(&self) -> f64 {
+        self.clock.now_s()
+    }
+
+    /// The live publishers of this domain, by GID.
+    pub fn directory(&self) -> &Arc<PublisherDirectory> {
+        &self.directory
     }
 
     pub fn node_name(&self) -> &str {
@@ -147,7 +224,7 @@ impl Bus {
             .session
             .declare_publisher(key.clone())
             .congestion_control(CongestionControl::Drop)
-            .priority(spec.qos.priority())
+            .priority(priority(spec.qos))
             .express(spec.qos.express())
             .await
             .map_err(zerr(format!("declare publisher {key}")))?;
@@ -156,23 +233,20 @@ impl Bus {
             &spec,
             T::description().dds_type_name(),
         );
+        let token_key = keys::liveliness_key(&entity, &keys::qos_string(false, spec.qos.depth()));
         let token = self
             .session
             .liveliness()
-            .declare_token(keys::liveliness_key(
-                &entity,
-                &keys::qos_string(false, spec.qos.depth()),
-            ))
+            .declare_token(token_key.clone())
             .await
             .map_err(zerr(format!("declare publisher token {key}")))?;
-        let mut gid = [0u8; 16];
-        rand::fill(&mut gid);
         Ok(Publisher {
             inner,
             spec,
             key,
-            gid,
+            gid: gid_for_token(&token_key),
             sequence: AtomicI64::new(0),
+            clock: Arc::clone(&self.clock),
             _token: token,
             _type: PhantomData,
         })
@@ -203,11 +277,36 @@ impl Bus {
         &self,
         topic: &Topic<T>,
     ) -> Result<Subscriber<T>, BusError> {
-        self.subscriber_with(topic, self.guard_settings(&topic.spec))
+        self.subscriber_with(topic, self.guard_settings(&topic.spec), SourcePolicy::Any)
             .await
     }
 
-    /// [`Bus::subscriber`] with explicit guard settings.
+    /// A subscriber that takes samples only from publishers announced by the node
+    /// `node` on this topic ([`SourcePolicy::Node`]); samples from anyone else are
+    /// dropped and counted (`<topic>.dropped_foreign`).
+    ///
+    /// # Errors
+    /// [`BusError::Zenoh`] if Zenoh refuses the declaration,
+    /// [`BusError::EmptySourceNode`] for an empty node name.
+    pub async fn subscriber_from<T: Message>(
+        &self,
+        topic: &Topic<T>,
+        node: &str,
+    ) -> Result<Subscriber<T>, BusError> {
+        if node.is_empty() {
+            return Err(BusError::EmptySourceNode {
+                topic: topic.spec.name,
+            });
+        }
+        self.subscriber_with(
+            topic,
+            self.guard_settings(&topic.spec),
+            SourcePolicy::Node(node.to_owned()),
+        )
+        .await
+    }
+
+    /// [`Bus::subscriber`] with explicit guard settings and source policy.
     ///
     /// # Errors
     /// [`BusError::Zenoh`] if Zenoh refuses the declaration.
@@ -215,18 +314,25 @@ impl Bus {
         &self,
         topic: &Topic<T>,
         settings: GuardSettings,
+        policy: SourcePolicy,
     ) -> Result<Subscriber<T>, BusError> {
         let spec = topic.spec;
         let key = keys::data_key::<T>(self.config.domain_id, spec.name);
-        let shared = Arc::new(Shared::<T>::new(spec, settings));
+        let shared = Arc::new(Shared::<T>::new(
+            spec,
+            settings,
+            policy,
+            Arc::clone(&self.directory),
+        ));
         let cb_shared = Arc::clone(&shared);
+        let cb_clock = Arc::clone(&self.clock);
         let inner = self
             .session
             .declare_subscriber(key.clone())
             .callback(move |sample: zenoh::sample::Sample| {
                 let payload = sample.payload().to_bytes();
                 let att = sample.attachment().map(|a| a.to_bytes());
-                cb_shared.on_sample(&payload, att.as_deref(), unix_nanos_now());
+                cb_shared.on_sample(&payload, att.as_deref(), cb_clock.now_ns());
             })
             .await
             .map_err(zerr(format!("declare subscriber {key}")))?;
@@ -320,9 +426,11 @@ impl Bus {
         let Bus {
             session,
             _node_token,
+            _directory_sub,
             ..
         } = self;
         drop(_node_token);
+        drop(_directory_sub);
         session.close().await.map_err(zerr("close session"))
     }
 }
@@ -334,6 +442,7 @@ pub struct Publisher<T> {
     key: String,
     gid: [u8; 16],
     sequence: AtomicI64,
+    clock: Arc<dyn Clock>,
     _token: LivelinessToken,
     _type: PhantomData<fn(T)>,
 }
@@ -355,12 +464,13 @@ impl<T: Message> Publisher<T> {
         self.gid
     }
 
-    /// Publishes `msg` now (non-blocking: congestion drops the sample).
+    /// Publishes `msg` now, on the node's clock (non-blocking: congestion drops the
+    /// sample).
     ///
     /// # Errors
     /// Encoding or Zenoh errors.
     pub fn put(&self, msg: &T) -> Result<(), BusError> {
-        self.put_at(msg, unix_nanos_now())
+        self.put_at(msg, self.clock.now_ns())
     }
 
     /// Publishes `msg` with an explicit source timestamp (ns since Unix epoch).
@@ -422,8 +532,26 @@ impl<T> Received<T> {
     }
 }
 
+/// A publisher a subscriber has heard from.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SeenPublisher {
+    pub gid: [u8; 16],
+    /// Receive time of its last sample with a valid attachment, ns (node clock).
+    pub last_ns: i64,
+    /// Whether its samples are refused (foreign to the source policy or the lock).
+    pub refused: bool,
+}
+
+/// Most publishers a subscriber remembers having heard from (oldest forgotten first).
+const MAX_SEEN: usize = 32;
+
 struct Shared<T> {
     spec: TopicSpec,
+    policy: SourcePolicy,
+    directory: Arc<PublisherDirectory>,
+    /// Only this publisher's samples are taken, when set.
+    lock: Mutex<Option<[u8; 16]>>,
+    seen: Mutex<Vec<SeenPublisher>>,
     queue: Mutex<VecDeque<Received<T>>>,
     ready: Condvar,
     notify: tokio::sync::Notify,
@@ -456,9 +584,18 @@ impl LogLimiter {
 }
 
 impl<T: Message> Shared<T> {
-    fn new(spec: TopicSpec, settings: GuardSettings) -> Self {
+    fn new(
+        spec: TopicSpec,
+        settings: GuardSettings,
+        policy: SourcePolicy,
+        directory: Arc<PublisherDirectory>,
+    ) -> Self {
         Self {
             spec,
+            policy,
+            directory,
+            lock: Mutex::new(None),
+            seen: Mutex::new(Vec::new()),
             queue: Mutex::new(VecDeque::with_capacity(spec.qos.depth())),
             ready: Condvar::new(),
             notify: tokio::sync::Notify::new(),
@@ -492,6 +629,16 @@ impl<T: Message> Shared<T> {
                 return;
             }
         };
+        let allowed = self.source_allowed(&att.gid);
+        self.note_publisher(att.gid, now_ns, !allowed);
+        if !allowed {
+            self.stats.count(Event::Foreign);
+            self.warn(format_args!(
+                "sample from a foreign publisher dropped ({})",
+                self.describe(&att.gid)
+            ));
+            return;
+        }
         let verdict = match self.guard.lock() {
             Ok(mut g) => g.check(&att, now_ns),
             Err(_) => return,
@@ -558,6 +705,54 @@ impl<T: Message> Shared<T> {
     fn pop(&self) -> Option<Received<T>> {
         self.queue.lock().ok().and_then(|mut q| q.pop_front())
     }
+
+    /// Whether the policy and the lock let a sample of publisher `gid` through.
+    fn source_allowed(&self, gid: &[u8; 16]) -> bool {
+        if let Ok(lock) = self.lock.lock()
+            && let Some(locked) = *lock
+            && locked != *gid
+        {
+            return false;
+        }
+        match &self.policy {
+            SourcePolicy::Any => true,
+            SourcePolicy::Node(node) => self.directory.lookup(gid).is_some_and(|p| {
+                p.node_name == *node && p.topic.trim_start_matches('/') == self.spec.name
+            }),
+        }
+    }
+
+    fn note_publisher(&self, gid: [u8; 16], now_ns: i64, refused: bool) {
+        let Ok(mut seen) = self.seen.lock() else {
+            return;
+        };
+        if let Some(p) = seen.iter_mut().find(|p| p.gid == gid) {
+            p.last_ns = now_ns;
+            p.refused = refused;
+            return;
+        }
+        if seen.len() >= MAX_SEEN
+            && let Some(oldest) = seen
+                .iter()
+                .enumerate()
+                .min_by_key(|(_, p)| p.last_ns)
+                .map(|(i, _)| i)
+        {
+            seen.swap_remove(oldest);
+        }
+        seen.push(SeenPublisher {
+            gid,
+            last_ns: now_ns,
+            refused,
+        });
+    }
+
+    fn describe(&self, gid: &[u8; 16]) -> String {
+        self.directory.lookup(gid).map_or_else(
+            || "publisher announced by no node".to_owned(),
+            |p| p.label(),
+        )
+    }
 }
 
 /// Typed subscriber. Holds the newest accepted sample(s) until taken.
@@ -617,6 +812,45 @@ impl<T: Message> Subscriber<T> {
 
     pub fn stats(&self) -> StatsSnapshot {
         self.shared.stats.snapshot()
+    }
+
+    /// Takes samples only from publisher `gid` from now on (`None`: from every
+    /// publisher the source policy allows). How a robot locks onto the one operator site
+    /// that commands it; samples of other publishers are dropped and counted as
+    /// foreign, never queued, so they cannot displace the locked publisher's newest
+    /// sample.
+    pub fn lock_source(&self, gid: Option<[u8; 16]>) {
+        if let Ok(mut lock) = self.shared.lock.lock() {
+            *lock = gid;
+        }
+    }
+
+    /// The publisher this subscriber is locked to, if any.
+    pub fn locked_source(&self) -> Option<[u8; 16]> {
+        self.shared.lock.lock().ok().and_then(|l| *l)
+    }
+
+    /// Publishers heard from (valid attachment) at or after `since_ns` (node clock),
+    /// refused ones included, most recent first.
+    pub fn publishers_since(&self, since_ns: i64) -> Vec<SeenPublisher> {
+        let mut out: Vec<SeenPublisher> = self
+            .shared
+            .seen
+            .lock()
+            .map(|s| {
+                s.iter()
+                    .filter(|p| p.last_ns >= since_ns)
+                    .cloned()
+                    .collect()
+            })
+            .unwrap_or_default();
+        out.sort_by_key(|p| std::cmp::Reverse(p.last_ns));
+        out
+    }
+
+    /// What the bus knows of publisher `gid` (node, session), if it announced itself.
+    pub fn publisher_info(&self, gid: &[u8; 16]) -> Option<PublisherInfo> {
+        self.shared.directory.lookup(gid)
     }
 
     /// Named counters for node status reports.

@@ -16,6 +16,7 @@ pub struct TopicStats {
     dropped_from_future: AtomicU64,
     decode_errors: AtomicU64,
     bad_attachment: AtomicU64,
+    foreign: AtomicU64,
     overwritten: AtomicU64,
     /// Microseconds from source timestamp to receipt, accepted samples only.
     latency_us: Mutex<Histogram<u64>>,
@@ -35,6 +36,8 @@ pub struct StatsSnapshot {
     pub decode_errors: u64,
     /// Samples without a valid rmw_zenoh attachment.
     pub bad_attachment: u64,
+    /// Samples from a publisher the source policy or lock refuses.
+    pub foreign: u64,
     /// Accepted samples replaced by a newer one before the application took them.
     pub overwritten: u64,
     pub latency_p50_us: u64,
@@ -50,6 +53,7 @@ impl StatsSnapshot {
             + self.dropped_from_future
             + self.decode_errors
             + self.bad_attachment
+            + self.foreign
     }
 }
 
@@ -63,6 +67,7 @@ pub enum Event {
     FromFuture,
     DecodeError,
     BadAttachment,
+    Foreign,
     Overwritten,
 }
 
@@ -86,6 +91,7 @@ impl TopicStats {
             dropped_from_future: AtomicU64::new(0),
             decode_errors: AtomicU64::new(0),
             bad_attachment: AtomicU64::new(0),
+            foreign: AtomicU64::new(0),
             overwritten: AtomicU64::new(0),
             latency_us: Mutex::new(hist),
         }
@@ -100,6 +106,7 @@ impl TopicStats {
             Event::FromFuture => &self.dropped_from_future,
             Event::DecodeError => &self.decode_errors,
             Event::BadAttachment => &self.bad_attachment,
+            Event::Foreign => &self.foreign,
             Event::Overwritten => &self.overwritten,
         };
         c.fetch_add(1, Ordering::Relaxed);
@@ -133,6 +140,7 @@ impl TopicStats {
             dropped_from_future: self.dropped_from_future.load(Ordering::Relaxed),
             decode_errors: self.decode_errors.load(Ordering::Relaxed),
             bad_attachment: self.bad_attachment.load(Ordering::Relaxed),
+            foreign: self.foreign.load(Ordering::Relaxed),
             overwritten: self.overwritten.load(Ordering::Relaxed),
             latency_p50_us: p50,
             latency_p99_us: p99,
@@ -151,6 +159,7 @@ impl TopicStats {
             ("rejected_from_future", s.dropped_from_future),
             ("rejected_decode", s.decode_errors),
             ("rejected_attachment", s.bad_attachment),
+            ("rejected_foreign", s.foreign),
         ]
         .into_iter()
         .map(|(n, v)| (format!("{prefix}.{n}"), v))

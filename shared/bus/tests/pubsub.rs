@@ -4,8 +4,8 @@
 use std::time::Duration;
 
 use teleop_bus::attachment::Attachment;
-use teleop_bus::topics::{self, WRIST_POSE};
 use teleop_bus::{Bus, BusConfig, NodeEvent, ZenohSettings};
+use teleop_interfaces::topics::{self, WRIST_POSE};
 use teleop_msgs::{Header, JointState, PoseStamped, Time, unix_nanos_now};
 
 fn free_port() -> u16 {
@@ -279,4 +279,56 @@ async fn invalid_node_names_are_refused() {
         .await
         .unwrap_err();
     assert!(err.to_string().contains("bad name/x"));
+}
+
+/// A subscriber with a node source policy takes samples only from publishers that node
+/// announced; a locked subscriber only from the locked publisher. Refused samples are
+/// counted as foreign and their publishers remembered.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn source_policy_and_lock_refuse_other_publishers() {
+    let (a, b) = pair(17).await;
+    let own = a.publisher(&topics::SHADOW_JOINT_STATES).await.unwrap();
+    let from_a = b
+        .subscriber_from(&topics::SHADOW_JOINT_STATES, "node_a")
+        .await
+        .unwrap();
+    let from_other = b
+        .subscriber_from(&topics::SHADOW_JOINT_STATES, "someone_else")
+        .await
+        .unwrap();
+    let any = b.subscriber(&topics::SHADOW_JOINT_STATES).await.unwrap();
+    wait_connected(&own, &from_a).await;
+    // Node a's samples reach the subscriber that wants node a, never the other.
+    own.put(&joint_state(5)).unwrap();
+    let got = from_a.recv_timeout(Duration::from_secs(2)).await.unwrap();
+    assert_eq!(got.msg.position[0], 5.0);
+    let info = from_a
+        .publisher_info(&got.publisher_gid)
+        .expect("announced");
+    assert_eq!(info.node_name, "node_a");
+    assert!(from_other.try_recv().is_none());
+    assert!(from_other.stats().foreign >= 2);
+    assert_eq!(from_a.stats().foreign, 0);
+    // A second publisher of node a: the lock keeps only the first.
+    let second = a.publisher(&topics::SHADOW_JOINT_STATES).await.unwrap();
+    any.lock_source(Some(own.gid()));
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    while any.try_recv().is_some() {}
+    let before = any.stats().foreign;
+    for i in 0..10 {
+        second.put(&joint_state(100 + i)).unwrap();
+    }
+    own.put(&joint_state(7)).unwrap();
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let got = any.try_recv().unwrap();
+    assert_eq!(got.msg.position[0], 7.0);
+    assert_eq!(got.publisher_gid, own.gid());
+    assert!(any.stats().foreign >= before + 10);
+    let heard = any.publishers_since(0);
+    assert!(heard.iter().any(|p| p.gid == second.gid() && p.refused));
+    assert!(heard.iter().any(|p| p.gid == own.gid() && !p.refused));
+    any.lock_source(None);
+    second.put(&joint_state(9)).unwrap();
+    let got = any.recv_timeout(Duration::from_secs(2)).await.unwrap();
+    assert_eq!(got.msg.position[0], 9.0);
 }

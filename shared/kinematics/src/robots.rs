@@ -49,15 +49,6 @@ pub mod ur5 {
     /// Depth camera optical frame: +z along the optical axis (viewing direction),
     /// +x right and +y down in the image (REP 103 optical convention).
     pub const CAMERA_OPTICAL_FRAME: &str = "camera_optical_frame";
-    /// Moving joints, base to flange.
-    pub const JOINTS: [&str; 6] = [
-        "shoulder_pan_joint",
-        "shoulder_lift_joint",
-        "elbow_joint",
-        "wrist_1_joint",
-        "wrist_2_joint",
-        "wrist_3_joint",
-    ];
 }
 
 /// Names in `pr2_right_arm_shadow.urdf`.
@@ -68,16 +59,6 @@ pub mod pr2 {
     pub const TORSO: &str = "torso_lift_link";
     /// End of the 7-joint IK chain: the Shadow palm (child of WRJ1).
     pub const WRIST: &str = "rh_palm";
-    /// The 7 joints of the arm IK chain: 5 PR2 arm joints then the 2 Shadow wrist joints.
-    pub const ARM_JOINTS: [&str; 7] = [
-        "r_shoulder_pan_joint",
-        "r_shoulder_lift_joint",
-        "r_upper_arm_roll_joint",
-        "r_elbow_flex_joint",
-        "r_forearm_roll_joint",
-        "rh_WRJ2",
-        "rh_WRJ1",
-    ];
 }
 
 /// Names in `shadow_hand.urdf` (and the hand part of `pr2_right_arm_shadow.urdf`).
@@ -88,18 +69,26 @@ pub mod shadow {
     pub const PALM: &str = "rh_palm";
     /// Angle at which the BioTac fixes every J1 (rad): 20 deg (thesis Table 3.1).
     pub const J1_FIXED_RAD: f64 = 20.0 * std::f64::consts::PI / 180.0;
-    /// Fingers in the order used for fingertip arrays: thumb, first, middle, ring, little.
-    pub const FINGERS: [&str; 5] = ["th", "ff", "mf", "rf", "lf"];
-    /// Fingertip frames (BioTac tip), thumb first.
-    pub const TIPS: [&str; 5] = ["rh_thtip", "rh_fftip", "rh_mftip", "rh_rftip", "rh_lftip"];
-    /// Distal-joint frames (J1 axis; the human DIP / thumb IP keypoint), thumb first.
-    pub const DIPS: [&str; 5] = ["rh_thdip", "rh_ffdip", "rh_mfdip", "rh_rfdip", "rh_lfdip"];
+    // Per-finger frame arrays follow the one finger order of the whole system
+    // (`teleop_interfaces::joints::FINGERTIPS`: ff, mf, rf, lf, th); a test checks it.
+    /// Fingertip frames (BioTac tip).
+    pub const TIPS: [&str; 5] = ["rh_fftip", "rh_mftip", "rh_rftip", "rh_lftip", "rh_thtip"];
+    /// Distal links (the BioTacs).
+    pub const DISTALS: [&str; 5] = [
+        "rh_ffdistal",
+        "rh_mfdistal",
+        "rh_rfdistal",
+        "rh_lfdistal",
+        "rh_thdistal",
+    ];
+    /// Distal-joint frames (J1 axis; the human DIP / thumb IP keypoint).
+    pub const DIPS: [&str; 5] = ["rh_ffdip", "rh_mfdip", "rh_rfdip", "rh_lfdip", "rh_thdip"];
     /// Middle-joint frames (J2 axis; the human PIP keypoint; thumb: THJ3/THJ2 axes,
-    /// the human thumb MCP), thumb first.
-    pub const PIPS: [&str; 5] = ["rh_thpip", "rh_ffpip", "rh_mfpip", "rh_rfpip", "rh_lfpip"];
+    /// the human thumb MCP).
+    pub const PIPS: [&str; 5] = ["rh_ffpip", "rh_mfpip", "rh_rfpip", "rh_lfpip", "rh_thpip"];
     /// Knuckle frames (J3/J4 axes; the human MCP keypoint; thumb: THJ5/THJ4 axes,
-    /// the human thumb CMC), thumb first.
-    pub const MCPS: [&str; 5] = ["rh_thmcp", "rh_ffmcp", "rh_mfmcp", "rh_rfmcp", "rh_lfmcp"];
+    /// the human thumb CMC).
+    pub const MCPS: [&str; 5] = ["rh_ffmcp", "rh_mfmcp", "rh_rfmcp", "rh_lfmcp", "rh_thmcp"];
     /// All 24 joints of the hand as Shadow names them (`rh_` prefix), J1s included.
     pub const ALL_JOINTS: [&str; 24] = [
         "rh_WRJ2", "rh_WRJ1", "rh_FFJ4", "rh_FFJ3", "rh_FFJ2", "rh_FFJ1", "rh_MFJ4", "rh_MFJ3",

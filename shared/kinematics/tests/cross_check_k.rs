@@ -158,7 +158,9 @@ fn pr2_seven_joint_chain_matches_k_serial_chain() {
     let names: Vec<String> = serial.iter_joints().map(|j| j.name.clone()).collect();
     assert_eq!(
         names,
-        robots::pr2::ARM_JOINTS.map(String::from).to_vec(),
+        teleop_interfaces::joints::PR2_ARM_JOINTS
+            .map(String::from)
+            .to_vec(),
         "same 7 joints in the same order"
     );
     let mut rng = ChaCha8Rng::seed_from_u64(7);

@@ -114,7 +114,7 @@ fn pr2_file_carries_the_same_hand() {
         .chain(robots::pr2::BASE, robots::pr2::WRIST)
         .expect("chain");
     let arm: Vec<&str> = chain.joint_names().collect();
-    assert_eq!(arm, robots::pr2::ARM_JOINTS);
+    assert_eq!(arm, teleop_interfaces::joints::PR2_ARM_JOINTS);
 }
 
 #[test]
@@ -142,7 +142,7 @@ fn ur5_limits_and_names() {
     let ur5 = robots::ur5().expect("embedded");
     assert_eq!(ur5.dof(), 6);
     let names: Vec<&str> = ur5.dof_joints().map(|j| j.name.as_str()).collect();
-    assert_eq!(names, robots::ur5::JOINTS);
+    assert_eq!(names, teleop_interfaces::joints::UR5_JOINTS);
     for l in ur5.dof_limits() {
         assert!((l.lower + 2.0 * PI).abs() < 1e-12 && (l.upper - 2.0 * PI).abs() < 1e-12);
         assert_eq!(l.velocity, 3.15);
@@ -301,5 +301,48 @@ fn structural_errors_name_the_culprit() {
         let err = Robot::from_urdf_str(&text).expect_err(&text);
         assert!(check(&err), "{text}\n gave {err:?}");
         assert!(!err.to_string().is_empty());
+    }
+}
+
+/// The joint tables every crate uses (`teleop_interfaces::joints`) name moving joints of
+/// our models, and the per-finger frame arrays follow the one finger order.
+#[test]
+fn interface_tables_match_the_models() {
+    use teleop_interfaces::joints::{FINGERTIPS, PR2_ARM_JOINTS, SHADOW_FINGER_JOINTS, UR5_JOINTS};
+    let hand = robots::shadow_hand().expect("embedded");
+    let pr2 = robots::pr2_arm().expect("embedded");
+    let ur5 = robots::ur5().expect("embedded");
+    for j in SHADOW_FINGER_JOINTS {
+        hand.dof_index(j)
+            .expect("finger joint moves in the hand model");
+        pr2.dof_index(j)
+            .expect("finger joint moves in the PR2 + hand model");
+    }
+    for j in PR2_ARM_JOINTS {
+        pr2.dof_index(j).expect("arm joint moves");
+    }
+    for j in UR5_JOINTS {
+        ur5.dof_index(j).expect("UR5 joint moves");
+    }
+    let chain = robots::pr2_arm_chain().expect("chain");
+    assert_eq!(
+        chain.chain().joint_names().collect::<Vec<_>>(),
+        PR2_ARM_JOINTS
+    );
+    for (i, f) in FINGERTIPS.iter().enumerate() {
+        for frames in [
+            robots::shadow::TIPS,
+            robots::shadow::DISTALS,
+            robots::shadow::DIPS,
+            robots::shadow::PIPS,
+            robots::shadow::MCPS,
+        ] {
+            assert!(
+                frames[i].starts_with(&format!("rh_{f}")),
+                "{} is not finger {f}",
+                frames[i]
+            );
+            hand.link_id(frames[i]).expect("frame exists");
+        }
     }
 }

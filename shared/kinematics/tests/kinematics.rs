@@ -309,7 +309,7 @@ fn chain_frames_end_in_the_tip_pose() {
     chain.frames_into(&q, &mut frames).expect("sizes");
     assert_eq!(frames[6], chain.end_pose(&q).expect("len"));
     let names: Vec<&str> = chain.joint_names().collect();
-    assert_eq!(names, robots::ur5::JOINTS);
+    assert_eq!(names, teleop_interfaces::joints::UR5_JOINTS);
 }
 
 #[test]

@@ -6,8 +6,8 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, bail};
 use teleop_bus::guard::GuardSettings;
 use teleop_bus::keys::{EntityKind, GraphEntity};
-use teleop_bus::topics::{self, TopicSpec};
-use teleop_bus::{Bus, BusConfig, StatsSnapshot, Subscriber, Topic};
+use teleop_bus::{Bus, BusConfig, SourcePolicy, StatsSnapshot, Subscriber};
+use teleop_interfaces::topics::{self, Topic, TopicSpec};
 use teleop_msgs::{
     FingertipPressures, Image, JointState, Message, NodeStatus, OperatorInput, PoseStamped,
 };
@@ -185,7 +185,9 @@ async fn echo_typed<T: Message>(
     until: Option<Instant>,
 ) -> anyhow::Result<()> {
     let topic = Topic::<T>::from_spec(spec).context("topic type mismatch")?;
-    let sub = bus.subscriber_with(&topic, echo_guard(bus, spec)).await?;
+    let sub = bus
+        .subscriber_with(&topic, echo_guard(bus, spec), SourcePolicy::Any)
+        .await?;
     let mut n = 0u64;
     loop {
         if count.is_some_and(|c| n >= c) || until.is_some_and(|u| Instant::now() >= u) {
@@ -292,11 +294,21 @@ pub async fn monitor(
     only: Option<&str>,
     duration_s: Option<f64>,
 ) -> anyhow::Result<()> {
+    let duration = deadline(duration_s)?.map(|u| u.saturating_duration_since(Instant::now()));
+    monitor_until(cfg, only, teleop_node::stop_signal(duration)).await
+}
+
+/// [`monitor`] until `stop` completes.
+pub async fn monitor_until(
+    cfg: &BusConfig,
+    only: Option<&str>,
+    stop: impl std::future::Future<Output = ()>,
+) -> anyhow::Result<()> {
     let specs: Vec<&'static TopicSpec> = match only {
         Some(name) => vec![spec_or_bail(name)?],
         None => topics::ALL.iter().collect(),
     };
-    let until = deadline(duration_s)?;
+    tokio::pin!(stop);
     let bus = open(cfg).await?;
     let mut subs: Vec<Box<dyn Watched>> = Vec::new();
     for spec in &specs {
@@ -309,7 +321,7 @@ pub async fn monitor(
     loop {
         tokio::select! {
             _ = ticker.tick() => {}
-            _ = tokio::signal::ctrl_c() => break,
+            () = &mut stop => break,
         }
         let dt = t_before.elapsed().as_secs_f64();
         t_before = Instant::now();
@@ -323,9 +335,6 @@ pub async fn monitor(
             *prev = now;
         }
         println!();
-        if until.is_some_and(|u| Instant::now() >= u) {
-            break;
-        }
     }
     drop(subs);
     bus.close().await?;

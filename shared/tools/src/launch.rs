@@ -1,37 +1,43 @@
-//! `teleop launch`: starts every node of the system on this machine, as separate
-//! processes talking Zenoh peer-to-peer over loopback, then shows the live monitor.
+//! `teleop launch`: starts every node of the node table on this machine, as separate
+//! processes talking Zenoh peer-to-peer over loopback, shows the live monitor, and on
+//! Ctrl-C / SIGTERM / `--duration-s` stops them gracefully: each gets SIGINT (operator
+//! site first, the robots' owner last, so the controllers' stop commands still reach
+//! the hardware), a grace period to shut down, then SIGKILL. Every node's final status
+//! (its lifecycle state at the stop, its counters, its last error) is collected from
+//! the bus and printed as a summary.
 
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::process::Stdio;
 use std::time::Duration;
 
 use anyhow::{Context, bail};
-use teleop_bus::ZenohArgs;
+use nix::sys::signal::{Signal, kill};
+use nix::unistd::Pid;
+use teleop_bus::{Bus, BusConfig, Subscriber};
+use teleop_interfaces::nodes::{NODES, NodeSpec};
+use teleop_interfaces::topics;
+use teleop_msgs::{Lifecycle, NodeStatus};
+use teleop_node::ZenohArgs;
 use tokio::process::{Child, Command};
-
-/// The node binaries of the system, in start order. Each runs with its default
-/// configuration unless a config directory is given.
-pub const NODES: &[&str] = &[
-    "remote_sim",
-    "pr2_arm_controller",
-    "shadow_hand_controller",
-    "feedback_publisher",
-    "wrist_tracker",
-];
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct LaunchArgs {
     /// Directory with `<node>.toml` files (default: built-in defaults).
     #[arg(long)]
     pub config_dir: Option<PathBuf>,
-    /// Stop everything after this many seconds (default: until Ctrl-C).
+    /// Stop everything after this many seconds (default: until Ctrl-C / SIGTERM).
     #[arg(long)]
     pub duration_s: Option<f64>,
     /// Do not print the monitor table.
     #[arg(long)]
     pub quiet: bool,
+    /// Seconds each node gets to shut down after SIGINT before it is killed.
+    #[arg(long, default_value_t = 5.0)]
+    pub grace_s: f64,
 }
 
+/// Where the node binaries are: next to this one.
 fn node_binary(name: &str) -> anyhow::Result<PathBuf> {
     let exe = std::env::current_exe().context("locating the teleop binary")?;
     let dir = exe.parent().context("teleop binary has no directory")?;
@@ -45,54 +51,225 @@ fn node_binary(name: &str) -> anyhow::Result<PathBuf> {
     Ok(path)
 }
 
-pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
-    let mut children: Vec<(&str, Child)> = Vec::new();
-    for name in NODES {
-        let mut cmd = Command::new(node_binary(name)?);
-        if let Some(dir) = &args.config_dir {
-            cmd.arg("--config").arg(dir.join(format!("{name}.toml")));
-        }
-        if let Some(d) = zenoh.domain_id {
-            cmd.arg("--domain-id").arg(d.to_string());
-        }
-        cmd.stdin(Stdio::null()).kill_on_drop(true);
-        let child = cmd.spawn().with_context(|| format!("starting {name}"))?;
-        tracing::info!(node = name, pid = child.id(), "started");
-        children.push((name, child));
-    }
-    let mut cfg = teleop_bus::BusConfig::default();
-    zenoh.apply(&mut cfg);
-    let monitor = async {
-        if args.quiet {
-            teleop_bus::node::stop_signal(
-                args.duration_s.map(|s| Duration::from_secs_f64(s.max(0.0))),
-            )
-            .await;
-            Ok(())
-        } else {
-            crate::inspect::monitor(&cfg, None, args.duration_s).await
-        }
-    };
-    let result = tokio::select! {
-        r = monitor => r,
-        (name, status) = wait_any(&mut children) => {
-            Err(anyhow::anyhow!("node {name} exited early: {status}"))
-        }
-    };
-    for (name, child) in &mut children {
-        if let Err(e) = child.start_kill() {
-            tracing::warn!(node = *name, "stopping: {e}");
-        }
-        let _ = child.wait().await;
-    }
-    result
+/// How one node ended.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NodeOutcome {
+    pub name: &'static str,
+    /// Exit status, or how it was stopped.
+    pub exit: String,
+    /// Whether it exited on its own after SIGINT (not killed, exit code 0).
+    pub graceful: bool,
+    /// Its lifecycle state just before it finalized (from its status reports).
+    pub state_at_stop: Option<Lifecycle>,
+    /// Its final (`FINALIZED`) status, if it reached the bus.
+    pub final_status: Option<NodeStatus>,
 }
 
-async fn wait_any<'a>(children: &mut [(&'a str, Child)]) -> (&'a str, String) {
+/// What every node reported, collected from `/teleop/status`.
+#[derive(Debug, Default)]
+struct StatusLog {
+    last_state: BTreeMap<String, Lifecycle>,
+    finals: BTreeMap<String, NodeStatus>,
+}
+
+impl StatusLog {
+    fn record(&mut self, s: NodeStatus) {
+        match s.lifecycle() {
+            Some(Lifecycle::Finalized) => {
+                self.finals.insert(s.node_name.clone(), s);
+            }
+            Some(state) => {
+                self.last_state.insert(s.node_name.clone(), state);
+            }
+            None => {}
+        }
+    }
+
+    fn drain(&mut self, sub: &Subscriber<NodeStatus>) {
+        while let Some(r) = sub.try_recv() {
+            self.record(r.msg);
+        }
+    }
+}
+
+pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
+    let mut cfg = BusConfig::default();
+    zenoh.apply(&mut cfg);
+    let bus = Bus::open(&format!("teleop_launch_{}", std::process::id()), &cfg).await?;
+    let status = bus.subscriber(&topics::NODE_STATUS).await?;
+    let mut log = StatusLog::default();
+
+    let mut children: Vec<(&'static NodeSpec, Child)> = Vec::new();
+    for spec in NODES {
+        let mut cmd = Command::new(node_binary(spec.name)?);
+        if let Some(dir) = &args.config_dir {
+            cmd.arg("--config")
+                .arg(dir.join(format!("{}.toml", spec.name)));
+        }
+        cmd.args(zenoh.to_args());
+        cmd.stdin(Stdio::null()).kill_on_drop(true);
+        let child = cmd
+            .spawn()
+            .with_context(|| format!("starting {}", spec.name))?;
+        tracing::info!(node = spec.name, pid = child.id(), "started");
+        children.push((spec, child));
+    }
+    let duration = args.duration_s.map(|s| Duration::from_secs_f64(s.max(0.0)));
+    let monitor = async {
+        if args.quiet {
+            teleop_node::stop_signal(duration).await;
+            Ok(())
+        } else {
+            crate::inspect::monitor_until(&cfg, None, teleop_node::stop_signal(duration)).await
+        }
+    };
+    let collect = async {
+        loop {
+            let r = status.recv().await;
+            log.record(r.msg);
+        }
+    };
+    let early = tokio::select! {
+        r = monitor => { r?; None }
+        (name, exit) = wait_any(&mut children) => Some((name, exit)),
+        () = collect => None,
+    };
+    log.drain(&status);
+    let outcomes = stop_all(&mut children, args.grace_s, &status, &mut log).await;
+    print_summary(&outcomes);
+    drop(status);
+    bus.close().await?;
+    if let Some((name, exit)) = early {
+        bail!("node {name} exited early: {exit}");
+    }
+    let bad: Vec<&str> = outcomes
+        .iter()
+        .filter(|o| !o.graceful || o.final_status.is_none())
+        .map(|o| o.name)
+        .collect();
+    if !bad.is_empty() {
+        bail!("not stopped gracefully: {}", bad.join(", "));
+    }
+    Ok(())
+}
+
+/// SIGINT to each node in reverse start order, wait up to `grace_s`, then SIGKILL.
+async fn stop_all(
+    children: &mut [(&'static NodeSpec, Child)],
+    grace_s: f64,
+    status: &Subscriber<NodeStatus>,
+    log: &mut StatusLog,
+) -> Vec<NodeOutcome> {
+    let grace = Duration::from_secs_f64(grace_s.clamp(0.1, 120.0));
+    let mut outcomes = Vec::new();
+    for (spec, child) in children.iter_mut().rev() {
+        let (exit, graceful) = match child.try_wait() {
+            Ok(Some(s)) => (format!("exited before the stop: {s}"), false),
+            _ => {
+                let signalled = child
+                    .id()
+                    .and_then(|pid| i32::try_from(pid).ok())
+                    .is_some_and(|pid| kill(Pid::from_raw(pid), Signal::SIGINT).is_ok());
+                match tokio::time::timeout(grace, child.wait()).await {
+                    Ok(Ok(s)) if signalled => (s.to_string(), s.success()),
+                    Ok(Ok(s)) => (s.to_string(), false),
+                    Ok(Err(e)) => (format!("wait failed: {e}"), false),
+                    Err(_) => {
+                        let _ = child.start_kill();
+                        let _ = child.wait().await;
+                        (format!("killed after {grace_s} s"), false)
+                    }
+                }
+            }
+        };
+        // The final status is published just before the session closes.
+        let until = tokio::time::Instant::now() + Duration::from_millis(500);
+        while !log.finals.contains_key(spec.name) && tokio::time::Instant::now() < until {
+            if let Some(r) = status.recv_timeout(Duration::from_millis(50)).await {
+                log.record(r.msg);
+            }
+        }
+        log.drain(status);
+        outcomes.push(NodeOutcome {
+            name: spec.name,
+            exit,
+            graceful,
+            state_at_stop: log.last_state.get(spec.name).copied(),
+            final_status: log.finals.get(spec.name).cloned(),
+        });
+    }
+    outcomes.reverse();
+    outcomes
+}
+
+/// Counters worth a line in the summary: everything that counts something going wrong
+/// or a safety action, when nonzero.
+fn notable(name: &str) -> bool {
+    [
+        "rejected",
+        "refused",
+        "limited",
+        "stop.",
+        "hold.",
+        "error",
+        "missing",
+        "safety",
+        "conflict",
+        "foreign",
+        "bad",
+        "engagements",
+    ]
+    .iter()
+    .any(|k| name.contains(k))
+        && !name.ends_with(".received")
+        && !name.ends_with(".accepted")
+}
+
+fn print_summary(outcomes: &[NodeOutcome]) {
+    println!();
+    println!("== teleop launch: summary");
+    println!(
+        "{:<24} {:<10} {:<14} {:<10} EXIT",
+        "NODE", "STOPPED", "STATE AT STOP", "FINAL"
+    );
+    for o in outcomes {
+        println!(
+            "{:<24} {:<10} {:<14} {:<10} {}",
+            o.name,
+            if o.graceful { "graceful" } else { "NOT" },
+            o.state_at_stop
+                .map_or_else(|| "-".to_owned(), |s| format!("{s:?}")),
+            if o.final_status.is_some() {
+                "reported"
+            } else {
+                "MISSING"
+            },
+            o.exit
+        );
+    }
+    for o in outcomes {
+        let Some(s) = &o.final_status else { continue };
+        let lines: Vec<String> = s
+            .counter_names
+            .iter()
+            .zip(&s.counter_values)
+            .filter(|(n, v)| **v > 0 && notable(n))
+            .map(|(n, v)| format!("{n}={v}"))
+            .collect();
+        if !lines.is_empty() {
+            println!("  {}: {}", o.name, lines.join(" "));
+        }
+        if !s.last_error.is_empty() {
+            println!("  {} last error: {}", o.name, s.last_error);
+        }
+    }
+}
+
+async fn wait_any(children: &mut [(&'static NodeSpec, Child)]) -> (&'static str, String) {
     loop {
-        for (name, child) in children.iter_mut() {
+        for (spec, child) in children.iter_mut() {
             if let Ok(Some(status)) = child.try_wait() {
-                return (name, status.to_string());
+                return (spec.name, status.to_string());
             }
         }
         tokio::time::sleep(Duration::from_millis(200)).await;

@@ -5,7 +5,7 @@ mod inspect;
 mod launch;
 
 use clap::{Parser, Subcommand};
-use teleop_bus::ZenohArgs;
+use teleop_node::ZenohArgs;
 
 #[derive(Debug, Parser)]
 #[command(
@@ -85,7 +85,7 @@ enum NodeCommand {
 
 #[tokio::main]
 async fn main() -> anyhow::Result<()> {
-    teleop_bus::init_tracing();
+    teleop_node::init_tracing();
     let cli = Cli::parse();
     let mut bus_cfg = teleop_bus::BusConfig::default();
     cli.zenoh.apply(&mut bus_cfg);

@@ -4,7 +4,8 @@
 use std::process::Command;
 use std::time::Duration;
 
-use teleop_bus::{Bus, BusConfig, ZenohSettings, topics};
+use teleop_bus::{Bus, BusConfig, ZenohSettings};
+use teleop_interfaces::topics;
 use teleop_msgs::{Header, OperatorInput, Time};
 
 fn teleop() -> Command {

@@ -1,0 +1,143 @@
+//! Who publishes what: a live map from publisher GID to the node that announced it.
+//!
+//! Every publisher of this bus carries a GID derived from its liveliness token key (the
+//! first 16 bytes of the key's SHA-256), and the token names the node, its Zenoh session
+//! and the topic. A subscriber that must only take samples from one node (a robot's
+//! hardware accepts commands from its own controller only) looks the sample's GID up
+//! here. Publishers that announce no token (or tokens of another form, e.g. ROS 2
+//! nodes on rmw_zenoh) are unknown and refused by such a subscriber.
+//!
+//! This binds a sample to the node that *announced* a publisher; it does not
+//! authenticate the sender (a peer that copies a GID off the wire can forge it). Mutual
+//! TLS and access control between sites are the deployment's; the robot-side safety
+//! layer limits whatever gets through.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
+use sha2::{Digest, Sha256};
+
+use crate::keys::{self, EntityKind};
+
+/// The GID of the publisher whose liveliness token key is `key`.
+pub fn gid_for_token(key: &str) -> [u8; 16] {
+    let digest = Sha256::digest(key.as_bytes());
+    let mut gid = [0u8; 16];
+    gid.copy_from_slice(&digest[..16]);
+    gid
+}
+
+/// What a publisher's token says about it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PublisherInfo {
+    /// Node name (without namespace).
+    pub node_name: String,
+    /// The node's Zenoh session id.
+    pub zid: String,
+    /// Topic with a leading `/`.
+    pub topic: String,
+}
+
+impl PublisherInfo {
+    /// `node@zid-prefix`, short enough for logs and status texts.
+    pub fn label(&self) -> String {
+        let zid: String = self.zid.chars().take(8).collect();
+        format!("{}@{zid}", self.node_name)
+    }
+}
+
+/// Live GID -> publisher map, fed by a liveliness subscriber of the bus.
+#[derive(Debug, Default)]
+pub struct PublisherDirectory {
+    by_gid: Mutex<HashMap<[u8; 16], PublisherInfo>>,
+}
+
+impl PublisherDirectory {
+    /// An empty directory.
+    pub fn new() -> Arc<Self> {
+        Arc::new(Self::default())
+    }
+
+    /// A token appeared (`alive`) or vanished.
+    pub fn update(&self, key: &str, alive: bool) {
+        let Some(e) = keys::parse_liveliness_key(key) else {
+            return;
+        };
+        if e.kind != EntityKind::Publisher {
+            return;
+        }
+        let gid = gid_for_token(key);
+        let Ok(mut map) = self.by_gid.lock() else {
+            return;
+        };
+        if alive {
+            map.insert(
+                gid,
+                PublisherInfo {
+                    node_name: e.node_name,
+                    zid: e.zid,
+                    topic: e.topic.unwrap_or_default(),
+                },
+            );
+        } else {
+            map.remove(&gid);
+        }
+    }
+
+    /// The publisher with this GID, if a live token announces it.
+    pub fn lookup(&self, gid: &[u8; 16]) -> Option<PublisherInfo> {
+        self.by_gid.lock().ok()?.get(gid).cloned()
+    }
+
+    /// Number of live publishers known.
+    pub fn len(&self) -> usize {
+        self.by_gid.lock().map(|m| m.len()).unwrap_or(0)
+    }
+
+    /// True when no publisher is known.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::keys::{GraphEntity, liveliness_key, qos_string};
+
+    #[test]
+    fn tokens_map_gids_to_nodes() {
+        let e = GraphEntity {
+            domain_id: 0,
+            zid: "aac3178e146ba6f1fc6e6a4085e77f21".into(),
+            node_id: 0,
+            entity_id: 4,
+            kind: EntityKind::Publisher,
+            namespace: String::new(),
+            node_name: "pr2_arm_controller".into(),
+            topic: Some("/teleop/hw/pr2_arm/command".into()),
+            dds_type: Some("sensor_msgs::msg::dds_::JointState_".into()),
+            type_hash: Some("RIHS01_a1".into()),
+        };
+        let key = liveliness_key(&e, &qos_string(false, 1));
+        let d = PublisherDirectory::new();
+        d.update(&key, true);
+        let info = d.lookup(&gid_for_token(&key)).expect("known");
+        assert_eq!(info.node_name, "pr2_arm_controller");
+        assert_eq!(info.topic, "/teleop/hw/pr2_arm/command");
+        assert_eq!(info.label(), "pr2_arm_controller@aac3178e");
+        assert_eq!(d.lookup(&[0; 16]), None);
+        d.update(&key, false);
+        assert!(d.is_empty());
+        // Node tokens are not publishers.
+        let node = GraphEntity {
+            kind: EntityKind::Node,
+            topic: None,
+            dds_type: None,
+            type_hash: None,
+            ..e
+        };
+        d.update(&liveliness_key(&node, ""), true);
+        assert!(d.is_empty());
+    }
+}

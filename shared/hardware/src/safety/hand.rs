@@ -1,0 +1,318 @@
+//! The hand's safety layer: effort limits, no push past a joint limit, no
+//! acceleration of a joint already above its speed limit, position targets inside the
+//! limits and rate-limited, and a command timeout that holds the posture.
+
+use nalgebra::SVector;
+use serde::{Deserialize, Serialize};
+use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
+
+use super::{Intervention, SafetyConfigError, SafetyCounters, check, step_dt};
+use crate::{FINGER_JOINTS, HandCommand, HandHardware, HandState, HardwareError};
+
+type Joints = SVector<f64, FINGER_JOINTS>;
+
+/// Settings of the hand's safety layer (joint limits come from the URDF).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct HandSafetyConfig {
+    /// With no new command for this long the hand holds the posture it has then (its
+    /// own position servo), s. Default 0.1 (50 periods of the 500 Hz controller).
+    pub command_timeout_s: f64,
+    /// Cap on every joint's effort, N m, below the URDF's per-joint limits. Default 2
+    /// (the finger joints' URDF limit, and the controller's in every mode).
+    pub max_effort_nm: f64,
+    /// Fraction of the URDF joint speed limits: above it, effort that would speed a
+    /// joint up further is removed. Default 1.5 (contacts make fingers bounce
+    /// briefly above the nominal speed; the rule is meant for runaways).
+    pub velocity_fraction: f64,
+    /// Position targets move toward a new command at most this fraction of the URDF
+    /// speed limit. Default 1.
+    pub target_speed_fraction: f64,
+    /// Longest time step the filter assumes, s. Default 0.05.
+    pub max_dt_s: f64,
+}
+
+impl Default for HandSafetyConfig {
+    fn default() -> Self {
+        Self {
+            command_timeout_s: 0.1,
+            max_effort_nm: 2.0,
+            velocity_fraction: 1.5,
+            target_speed_fraction: 1.0,
+            max_dt_s: 0.05,
+        }
+    }
+}
+
+impl HandSafetyConfig {
+    /// # Errors
+    /// [`SafetyConfigError::Invalid`] naming the field.
+    pub fn validate(&self) -> Result<(), SafetyConfigError> {
+        check("command_timeout_s", self.command_timeout_s, 1e-3, 10.0)?;
+        check("max_effort_nm", self.max_effort_nm, 1e-3, 100.0)?;
+        check("velocity_fraction", self.velocity_fraction, 0.1, 10.0)?;
+        check(
+            "target_speed_fraction",
+            self.target_speed_fraction,
+            0.01,
+            10.0,
+        )?;
+        check("max_dt_s", self.max_dt_s, 1e-4, 1.0)
+    }
+}
+
+/// The hand's finger joint limits ([`SHADOW_FINGER_JOINTS`] order).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HandLimits {
+    pub lower_rad: Joints,
+    pub upper_rad: Joints,
+    pub velocity_rad_s: Joints,
+    pub effort_nm: Joints,
+}
+
+impl HandLimits {
+    /// The Shadow hand's limits from our URDF.
+    ///
+    /// # Errors
+    /// [`SafetyConfigError::Model`] if the model lacked a finger joint.
+    pub fn shadow() -> Result<Self, SafetyConfigError> {
+        let model = |e: teleop_kinematics::KinematicsError| SafetyConfigError::Model(e.to_string());
+        let robot = teleop_kinematics::robots::shadow_hand().map_err(model)?;
+        let limits: Vec<_> = robot.dof_limits().collect();
+        let mut out = Self {
+            lower_rad: Joints::zeros(),
+            upper_rad: Joints::zeros(),
+            velocity_rad_s: Joints::zeros(),
+            effort_nm: Joints::zeros(),
+        };
+        for (i, name) in SHADOW_FINGER_JOINTS.iter().enumerate() {
+            let l = limits[robot.dof_index(name).map_err(model)?];
+            out.lower_rad[i] = l.lower;
+            out.upper_rad[i] = l.upper;
+            out.velocity_rad_s[i] = l.velocity;
+            out.effort_nm[i] = l.effort;
+        }
+        Ok(out)
+    }
+}
+
+/// The hand's safety filter, a pure core; see [`HandSafety::step`].
+#[derive(Debug, Clone)]
+pub struct HandSafety {
+    config: HandSafetyConfig,
+    limits: HandLimits,
+    effort_cap: Joints,
+    command: Option<(HandCommand, f64)>,
+    /// Posture held after a timeout.
+    hold: Option<Joints>,
+    /// Last position target sent (for the rate limit).
+    last_target: Option<Joints>,
+    last_step_s: Option<f64>,
+    counters: SafetyCounters,
+}
+
+impl HandSafety {
+    /// A filter with the given limits.
+    ///
+    /// # Errors
+    /// [`SafetyConfigError::Invalid`] naming a bad setting.
+    pub fn new(limits: HandLimits, config: HandSafetyConfig) -> Result<Self, SafetyConfigError> {
+        config.validate()?;
+        let effort_cap = limits.effort_nm.map(|e| e.min(config.max_effort_nm));
+        Ok(Self {
+            config,
+            limits,
+            effort_cap,
+            command: None,
+            hold: None,
+            last_target: None,
+            last_step_s: None,
+            counters: SafetyCounters::default(),
+        })
+    }
+
+    /// The limits in force.
+    pub fn limits(&self) -> &HandLimits {
+        &self.limits
+    }
+
+    /// Effort limit per joint (URDF limit capped by `max_effort_nm`), N m.
+    pub fn effort_cap_nm(&self) -> &Joints {
+        &self.effort_cap
+    }
+
+    /// Interventions so far.
+    pub fn counters(&self) -> &SafetyCounters {
+        &self.counters
+    }
+
+    /// One period at `now_s`: `command` if one arrived, the measured `state`.
+    /// Returns the command for the hardware, or `None` when there is nothing to send
+    /// (no command ever and no state: the hardware keeps its own initial hold).
+    ///
+    /// * **Effort**: clamped to the effort cap; at or past a position limit, effort
+    ///   pushing further out is removed; a joint faster than `velocity_fraction ·` its
+    ///   limit gets no effort in its direction of motion.
+    /// * **Position**: targets clamped into the limits and moved toward the command at
+    ///   most `target_speed_fraction ·` the speed limit.
+    /// * **Timeout** (no valid command for `command_timeout_s`) or no state: hold the
+    ///   posture measured then (position command).
+    pub fn step(
+        &mut self,
+        now_s: f64,
+        command: Option<&HandCommand>,
+        state: Option<&HandState>,
+    ) -> Option<HandCommand> {
+        let dt = step_dt(self.last_step_s, now_s, self.config.max_dt_s);
+        self.last_step_s = Some(now_s);
+        self.counters.periods += 1;
+        if let Some(c) = command {
+            self.counters.commands += 1;
+            if c.is_finite() {
+                self.command = Some((*c, now_s));
+                self.hold = None;
+            } else {
+                self.counters.count(Intervention::NonFinite);
+            }
+        }
+        let state = state.filter(|s| {
+            s.position_rad.iter().all(|v| v.is_finite())
+                && s.velocity_rad_s.iter().all(|v| v.is_finite())
+        });
+        let fresh = self
+            .command
+            .filter(|(_, at)| now_s - at <= self.config.command_timeout_s);
+        let (Some((command, _)), Some(state)) = (fresh, state) else {
+            // Never commanded: the hardware holds its initial posture on its own.
+            self.command?;
+            self.counters.count(if state.is_none() {
+                Intervention::NoState
+            } else {
+                Intervention::Timeout
+            });
+            let hold = self
+                .hold
+                .or(state.map(|s| s.position_rad))
+                .or(self.last_target)?;
+            if self.hold.is_none() {
+                tracing::warn!("hand commands stopped or state lost: holding the posture");
+            }
+            self.hold = Some(hold);
+            self.last_target = Some(hold);
+            return Some(HandCommand::Position(hold));
+        };
+        Some(match command {
+            HandCommand::Effort(tau) => HandCommand::Effort(self.filter_effort(&tau, state)),
+            HandCommand::Position(q) => HandCommand::Position(self.filter_target(&q, state, dt)),
+        })
+    }
+
+    fn filter_effort(&mut self, tau: &Joints, state: &HandState) -> Joints {
+        let mut out = *tau;
+        let (mut clamped, mut at_limit, mut runaway) = (false, false, false);
+        for i in 0..FINGER_JOINTS {
+            let cap = self.effort_cap[i];
+            if out[i].abs() > cap {
+                out[i] = out[i].signum() * cap;
+                clamped = true;
+            }
+            let q = state.position_rad[i];
+            if (q >= self.limits.upper_rad[i] && out[i] > 0.0)
+                || (q <= self.limits.lower_rad[i] && out[i] < 0.0)
+            {
+                out[i] = 0.0;
+                at_limit = true;
+            }
+            let qd = state.velocity_rad_s[i];
+            if qd.abs() > self.config.velocity_fraction * self.limits.velocity_rad_s[i]
+                && out[i] * qd > 0.0
+            {
+                out[i] = 0.0;
+                runaway = true;
+            }
+        }
+        for (hit, what) in [
+            (clamped, Intervention::Effort),
+            (at_limit, Intervention::PositionLimit),
+            (runaway, Intervention::Velocity),
+        ] {
+            if hit {
+                self.counters.count(what);
+            }
+        }
+        self.last_target = None;
+        out
+    }
+
+    fn filter_target(&mut self, q: &Joints, state: &HandState, dt: f64) -> Joints {
+        let clamped = q.zip_zip_map(&self.limits.lower_rad, &self.limits.upper_rad, |x, l, u| {
+            x.clamp(l, u)
+        });
+        if clamped != *q {
+            self.counters.count(Intervention::PositionLimit);
+        }
+        let from = self.last_target.unwrap_or(state.position_rad);
+        let mut out = clamped;
+        let mut limited = false;
+        for i in 0..FINGER_JOINTS {
+            let step = self.config.target_speed_fraction * self.limits.velocity_rad_s[i] * dt;
+            let d = clamped[i] - from[i];
+            if d.abs() > step {
+                out[i] = from[i] + d.signum() * step;
+                limited = true;
+            }
+        }
+        if limited {
+            self.counters.count(Intervention::Velocity);
+        }
+        self.last_target = Some(out);
+        out
+    }
+}
+
+/// The hand behind its safety layer: implements [`HandHardware`], and every command,
+/// and every period without one ([`SafeHand::idle`]), reaches the backend only
+/// through [`HandSafety::step`].
+#[derive(Debug)]
+pub struct SafeHand<B> {
+    backend: B,
+    safety: HandSafety,
+}
+
+impl<B: HandHardware> SafeHand<B> {
+    /// Wraps `backend`.
+    pub fn new(backend: B, safety: HandSafety) -> Self {
+        Self { backend, safety }
+    }
+
+    /// The filter (limits, counters).
+    pub fn safety(&self) -> &HandSafety {
+        &self.safety
+    }
+
+    /// A period without a new command.
+    ///
+    /// # Errors
+    /// The backend's.
+    pub fn idle(&mut self, now_s: f64) -> Result<(), HardwareError> {
+        self.apply(now_s, None)
+    }
+
+    fn apply(&mut self, now_s: f64, command: Option<&HandCommand>) -> Result<(), HardwareError> {
+        let state = self.backend.read(now_s).ok();
+        match self.safety.step(now_s, command, state.as_ref()) {
+            Some(out) => self.backend.write(now_s, &out),
+            None => Ok(()),
+        }
+    }
+}
+
+impl<B: HandHardware> HandHardware for SafeHand<B> {
+    fn read(&mut self, now_s: f64) -> Result<HandState, HardwareError> {
+        self.backend.read(now_s)
+    }
+
+    fn write(&mut self, now_s: f64, command: &HandCommand) -> Result<(), HardwareError> {
+        self.apply(now_s, Some(command))
+    }
+}

@@ -1,0 +1,354 @@
+//! Conversions between the hardware types and bus messages (`JointState`,
+//! `FingertipPressures`). Joints are matched by name, so a publisher may list them in any
+//! order; missing joints, wrong lengths and non-finite values are errors naming the
+//! joint and field.
+
+use nalgebra::SVector;
+use teleop_interfaces::joints::{FINGERTIPS, SHADOW_FINGER_JOINTS};
+use teleop_msgs::{FingertipPressures, Header, JointState, Time};
+
+use crate::{ArmCommand, ArmState, FINGER_JOINTS, HandCommand, HandState};
+
+/// Why a message could not be turned into a hardware value.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum WireError {
+    #[error("joint `{0}` is missing from the message")]
+    MissingJoint(String),
+    #[error("field `{field}` has {len} values for {names} names")]
+    Length {
+        field: &'static str,
+        len: usize,
+        names: usize,
+    },
+    #[error("joint `{joint}`: {field} is not finite")]
+    NonFinite { joint: String, field: &'static str },
+    #[error("hand command has neither `position` nor `effort` values")]
+    EmptyCommand,
+}
+
+impl WireError {
+    /// Short name for counters.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            WireError::MissingJoint(_) => "missing_joint",
+            WireError::Length { .. } => "length",
+            WireError::NonFinite { .. } => "non_finite",
+            WireError::EmptyCommand => "empty",
+        }
+    }
+}
+
+/// Which `JointState` field to read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Field {
+    Position,
+    Velocity,
+    Effort,
+}
+
+impl Field {
+    fn name(self) -> &'static str {
+        match self {
+            Field::Position => "position",
+            Field::Velocity => "velocity",
+            Field::Effort => "effort",
+        }
+    }
+}
+
+/// Values of `field` for the joints `wanted`, by name.
+///
+/// # Errors
+/// [`WireError`] naming the joint or field at fault.
+pub fn joint_vector<const N: usize>(
+    msg: &JointState,
+    wanted: &[&str; N],
+    field: Field,
+) -> Result<SVector<f64, N>, WireError> {
+    let values = match field {
+        Field::Position => &msg.position,
+        Field::Velocity => &msg.velocity,
+        Field::Effort => &msg.effort,
+    };
+    if values.len() != msg.name.len() {
+        return Err(WireError::Length {
+            field: field.name(),
+            len: values.len(),
+            names: msg.name.len(),
+        });
+    }
+    let mut out = SVector::<f64, N>::zeros();
+    for (i, joint) in wanted.iter().enumerate() {
+        let idx = msg
+            .name
+            .iter()
+            .position(|n| n == joint)
+            .ok_or_else(|| WireError::MissingJoint((*joint).to_owned()))?;
+        let v = values[idx];
+        if !v.is_finite() {
+            return Err(WireError::NonFinite {
+                joint: (*joint).to_owned(),
+                field: field.name(),
+            });
+        }
+        out[i] = v;
+    }
+    Ok(out)
+}
+
+fn names<const N: usize>(joints: &[&str; N]) -> Vec<String> {
+    joints.iter().map(|s| (*s).to_owned()).collect()
+}
+
+fn stamp(time_s: f64) -> Header {
+    // Hardware times are seconds since the epoch: far inside the i64 ns range.
+    #[allow(clippy::cast_possible_truncation)]
+    Header::new(Time::from_nanos((time_s * 1e9) as i64), "")
+}
+
+/// An arm state as a `JointState` (positions and velocities).
+pub fn arm_state_msg<const N: usize>(joints: &[&str; N], s: &ArmState<N>) -> JointState {
+    JointState {
+        header: stamp(s.time_s),
+        name: names(joints),
+        position: s.position_rad.iter().copied().collect(),
+        velocity: s.velocity_rad_s.iter().copied().collect(),
+        effort: vec![],
+    }
+}
+
+/// # Errors
+/// [`WireError`] naming the joint or field at fault.
+pub fn arm_state<const N: usize>(
+    joints: &[&str; N],
+    msg: &JointState,
+) -> Result<ArmState<N>, WireError> {
+    Ok(ArmState {
+        time_s: msg.header.stamp.as_secs_f64(),
+        position_rad: joint_vector(msg, joints, Field::Position)?,
+        velocity_rad_s: joint_vector(msg, joints, Field::Velocity)?,
+    })
+}
+
+/// An arm command as a `JointState` (velocities only).
+pub fn arm_command_msg<const N: usize>(
+    joints: &[&str; N],
+    c: &ArmCommand<N>,
+    time_s: f64,
+) -> JointState {
+    JointState {
+        header: stamp(time_s),
+        name: names(joints),
+        position: vec![],
+        velocity: c.velocity_rad_s.iter().copied().collect(),
+        effort: vec![],
+    }
+}
+
+/// # Errors
+/// [`WireError`] naming the joint or field at fault.
+pub fn arm_command<const N: usize>(
+    joints: &[&str; N],
+    msg: &JointState,
+) -> Result<ArmCommand<N>, WireError> {
+    Ok(ArmCommand {
+        velocity_rad_s: joint_vector(msg, joints, Field::Velocity)?,
+    })
+}
+
+/// A hand state as a `JointState` (positions, velocities, efforts).
+pub fn hand_state_msg(s: &HandState) -> JointState {
+    JointState {
+        header: stamp(s.time_s),
+        name: names(&SHADOW_FINGER_JOINTS),
+        position: s.position_rad.iter().copied().collect(),
+        velocity: s.velocity_rad_s.iter().copied().collect(),
+        effort: s.effort_nm.iter().copied().collect(),
+    }
+}
+
+/// The fingertip forces of a hand state.
+pub fn tactile_msg(s: &HandState) -> FingertipPressures {
+    let f = s.fingertip_force_n;
+    FingertipPressures {
+        header: stamp(s.time_s),
+        ff: f[0],
+        mf: f[1],
+        rf: f[2],
+        lf: f[3],
+        th: f[4],
+    }
+}
+
+/// # Errors
+/// [`WireError`] naming the joint or field at fault.
+pub fn hand_state(
+    msg: &JointState,
+    tactile: Option<&FingertipPressures>,
+) -> Result<HandState, WireError> {
+    let fingertip_force_n = match tactile {
+        Some(t) => {
+            let v = t.values();
+            for (i, x) in v.iter().enumerate() {
+                if !x.is_finite() {
+                    return Err(WireError::NonFinite {
+                        joint: FINGERTIPS[i].to_owned(),
+                        field: "fingertip force",
+                    });
+                }
+            }
+            v
+        }
+        None => [0.0; 5],
+    };
+    Ok(HandState {
+        time_s: msg.header.stamp.as_secs_f64(),
+        position_rad: joint_vector(msg, &SHADOW_FINGER_JOINTS, Field::Position)?,
+        velocity_rad_s: joint_vector(msg, &SHADOW_FINGER_JOINTS, Field::Velocity)?,
+        effort_nm: joint_vector(msg, &SHADOW_FINGER_JOINTS, Field::Effort)?,
+        fingertip_force_n,
+    })
+}
+
+/// A hand command as a `JointState` (`effort` or `position`).
+pub fn hand_command_msg(c: &HandCommand, time_s: f64) -> JointState {
+    let (position, effort) = match c {
+        HandCommand::Position(q) => (q.iter().copied().collect(), vec![]),
+        HandCommand::Effort(t) => (vec![], t.iter().copied().collect()),
+    };
+    JointState {
+        header: stamp(time_s),
+        name: names(&SHADOW_FINGER_JOINTS),
+        position,
+        velocity: vec![],
+        effort,
+    }
+}
+
+/// # Errors
+/// [`WireError`] naming the joint or field at fault, or [`WireError::EmptyCommand`].
+pub fn hand_command(msg: &JointState) -> Result<HandCommand, WireError> {
+    if !msg.effort.is_empty() {
+        Ok(HandCommand::Effort(joint_vector(
+            msg,
+            &SHADOW_FINGER_JOINTS,
+            Field::Effort,
+        )?))
+    } else if !msg.position.is_empty() {
+        Ok(HandCommand::Position(joint_vector(
+            msg,
+            &SHADOW_FINGER_JOINTS,
+            Field::Position,
+        )?))
+    } else {
+        Err(WireError::EmptyCommand)
+    }
+}
+
+/// Finger joint targets from the operator site's hand inference (`JointState` with the
+/// 17 finger joint names and positions).
+///
+/// # Errors
+/// [`WireError`] naming the joint or field at fault.
+pub fn finger_targets(msg: &JointState) -> Result<SVector<f64, FINGER_JOINTS>, WireError> {
+    joint_vector(msg, &SHADOW_FINGER_JOINTS, Field::Position)
+}
+
+/// Finger joint targets as a `JointState` (positions).
+pub fn finger_targets_msg(q: &SVector<f64, FINGER_JOINTS>, time_s: f64) -> JointState {
+    JointState {
+        header: stamp(time_s),
+        name: names(&SHADOW_FINGER_JOINTS),
+        position: q.iter().copied().collect(),
+        velocity: vec![],
+        effort: vec![],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use teleop_interfaces::joints::{PR2_ARM_JOINTS, UR5_JOINTS};
+
+    #[test]
+    fn round_trips() {
+        let arm = ArmState {
+            time_s: 12.5,
+            position_rad: SVector::<f64, 7>::from_fn(|i, _| i as f64 * 0.1),
+            velocity_rad_s: SVector::from_fn(|i, _| -(i as f64)),
+        };
+        assert_eq!(
+            arm_state(&PR2_ARM_JOINTS, &arm_state_msg(&PR2_ARM_JOINTS, &arm)),
+            Ok(arm)
+        );
+        let ur5 = ArmCommand {
+            velocity_rad_s: SVector::<f64, 6>::from_fn(|i, _| i as f64),
+        };
+        assert_eq!(
+            arm_command(&UR5_JOINTS, &arm_command_msg(&UR5_JOINTS, &ur5, 1.0)),
+            Ok(ur5)
+        );
+        let hand = HandState {
+            time_s: 3.0,
+            position_rad: SVector::from_fn(|i, _| i as f64 * 0.05),
+            velocity_rad_s: SVector::zeros(),
+            effort_nm: SVector::from_element(0.1),
+            fingertip_force_n: [1.0, 2.0, 3.0, 4.0, 5.0],
+        };
+        assert_eq!(
+            hand_state(&hand_state_msg(&hand), Some(&tactile_msg(&hand))),
+            Ok(hand)
+        );
+        for c in [
+            HandCommand::Effort(SVector::from_element(0.2)),
+            HandCommand::Position(SVector::from_element(0.3)),
+        ] {
+            assert_eq!(hand_command(&hand_command_msg(&c, 0.0)), Ok(c));
+        }
+        let q = SVector::from_fn(|i, _| i as f64 * 0.01);
+        assert_eq!(finger_targets(&finger_targets_msg(&q, 1.0)), Ok(q));
+    }
+
+    #[test]
+    fn joints_match_by_name_in_any_order() {
+        let cmd = ArmCommand {
+            velocity_rad_s: SVector::<f64, 7>::from_fn(|i, _| i as f64),
+        };
+        let mut msg = arm_command_msg(&PR2_ARM_JOINTS, &cmd, 0.0);
+        msg.name.reverse();
+        msg.velocity.reverse();
+        assert_eq!(arm_command(&PR2_ARM_JOINTS, &msg), Ok(cmd));
+    }
+
+    #[test]
+    fn errors_name_the_problem() {
+        let cmd = ArmCommand::<7>::stop();
+        let mut msg = arm_command_msg(&PR2_ARM_JOINTS, &cmd, 0.0);
+        msg.velocity[2] = f64::NAN;
+        assert_eq!(
+            arm_command(&PR2_ARM_JOINTS, &msg),
+            Err(WireError::NonFinite {
+                joint: PR2_ARM_JOINTS[2].to_owned(),
+                field: "velocity"
+            })
+        );
+        msg.name[0] = "bogus".into();
+        let e = arm_command(&PR2_ARM_JOINTS, &msg).unwrap_err();
+        assert_eq!(e, WireError::MissingJoint(PR2_ARM_JOINTS[0].to_owned()));
+        assert_eq!(e.kind(), "missing_joint");
+        msg.velocity.pop();
+        assert!(matches!(
+            arm_command(&PR2_ARM_JOINTS, &msg),
+            Err(WireError::Length { .. })
+        ));
+        let empty = JointState {
+            name: names(&SHADOW_FINGER_JOINTS),
+            ..Default::default()
+        };
+        assert_eq!(hand_command(&empty), Err(WireError::EmptyCommand));
+        // A UR5 message is not a PR2 command.
+        let ur5 = arm_command_msg(&UR5_JOINTS, &ArmCommand::<6>::stop(), 0.0);
+        assert!(arm_command(&PR2_ARM_JOINTS, &ur5).is_err());
+    }
+}

@@ -1,0 +1,18 @@
+//! Hardware reached over the bus, on the `teleop/hw/...` topics of an interface table
+//! entry (`teleop_interfaces::hardware`).
+//!
+//! * Clients — what a controller holds: [`BusArm<N>`] (any arm: the PR2 chain, the UR5),
+//!   [`BusHand`], [`BusCamera`]. They implement the `teleop-hardware` traits, so a
+//!   controller cannot tell them from an in-process backend. A `monitor` handle only
+//!   reads.
+//! * Endpoints — what the process that owns the hardware holds: [`ArmEndpoint<N>`] and
+//!   [`HandEndpoint`] publish the state and take commands **only from the interface's
+//!   controller node** (bus [`SourcePolicy::Node`](teleop_bus::SourcePolicy)): samples
+//!   of any other publisher are dropped and counted before they are decoded. What they
+//!   hand out must still go through the safety layer (`SafeArm` / `SafeHand`).
+
+mod client;
+mod endpoint;
+
+pub use client::{BusArm, BusCamera, BusHand};
+pub use endpoint::{ArmEndpoint, HandEndpoint};

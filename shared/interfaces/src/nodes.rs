@@ -1,0 +1,131 @@
+//! Every node binary of the system: its site, the machine it runs on in the thesis's
+//! setup (ch. 7.3), its config file, and what it does. The launcher starts them in this
+//! order; the config test checks every file named here.
+
+/// The two sites.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Site {
+    /// The operator's site.
+    Local,
+    /// The robot's site.
+    Remote,
+}
+
+impl Site {
+    /// `"local"` / `"remote"`.
+    pub fn label(self) -> &'static str {
+        match self {
+            Site::Local => "local",
+            Site::Remote => "remote",
+        }
+    }
+}
+
+/// One node binary.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct NodeSpec {
+    /// Binary name, also the node's default name on the bus (unique across sites).
+    pub name: &'static str,
+    pub site: Site,
+    /// Machine in the thesis's setup: `PC1`/`PC3` (operator site), `PC2` (robot site
+    /// controllers), `robot` (the robots' own drivers; the simulator stands in).
+    pub machine: &'static str,
+    /// Shipped configuration, relative to the repository root.
+    pub config: &'static str,
+    /// What it does.
+    pub role: &'static str,
+    /// Whether it commands hardware (then its shutdown commands a stop).
+    pub commands_hardware: bool,
+}
+
+/// Every node, in start order (hardware first, then controllers, then the operator
+/// site, so each finds what it needs).
+pub const NODES: &[NodeSpec] = &[
+    NodeSpec {
+        name: "remote_sim",
+        site: Site::Remote,
+        machine: "robot",
+        config: "deploy/config/remote_sim.toml",
+        role: "simulated PR2 arm, Shadow hand, objects and camera views, behind the hardware safety layer",
+        commands_hardware: true,
+    },
+    NodeSpec {
+        name: "pr2_arm_controller",
+        site: Site::Remote,
+        machine: "PC2",
+        config: "deploy/config/pr2_arm_controller.toml",
+        role: "PR2 arm relative control (clutch, IK, eq. 6.1 velocity law, watchdog)",
+        commands_hardware: true,
+    },
+    NodeSpec {
+        name: "shadow_hand_controller",
+        site: Site::Remote,
+        machine: "PC2",
+        config: "deploy/config/shadow_hand_controller.toml",
+        role: "Shadow hand control (position / fixed / adaptive impedance, hold watchdog)",
+        commands_hardware: true,
+    },
+    NodeSpec {
+        name: "feedback_publisher",
+        site: Site::Remote,
+        machine: "PC2",
+        config: "deploy/config/feedback_publisher.toml",
+        role: "joint states, fingertip pressures and camera views to the operator site",
+        commands_hardware: false,
+    },
+    NodeSpec {
+        name: "wrist_tracker",
+        site: Site::Local,
+        machine: "PC1",
+        config: "deploy/config/wrist_tracker.toml",
+        role: "operator wrist pose and pedals (simulated operator today)",
+        commands_hardware: false,
+    },
+];
+
+/// The operator-site node that publishes the finger targets
+/// ([`HAND_JOINT_TARGETS`](crate::topics::HAND_JOINT_TARGETS)); it joins [`NODES`] with
+/// the hand-inference stage.
+pub const HAND_INFERENCE: &str = "hand_inference";
+
+/// The node named `name`.
+pub fn find(name: &str) -> Option<&'static NodeSpec> {
+    NODES.iter().find(|n| n.name == name)
+}
+
+/// Names of the nodes of `site`, in start order.
+pub fn of_site(site: Site) -> impl Iterator<Item = &'static str> {
+    NODES.iter().filter(move |n| n.site == site).map(|n| n.name)
+}
+
+/// The node table as Markdown (for `docs/architecture.md`).
+pub fn markdown_table() -> String {
+    let mut out =
+        String::from("| node | site | machine | config | role |\n|---|---|---|---|---|\n");
+    for n in NODES {
+        out.push_str(&format!(
+            "| `{}` | {} | {} | `{}` | {} |\n",
+            n.name,
+            n.site.label(),
+            n.machine,
+            n.config,
+            n.role
+        ));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_are_unique_and_configs_are_named_after_them() {
+        for (i, a) in NODES.iter().enumerate() {
+            assert!(NODES[i + 1..].iter().all(|b| b.name != a.name));
+            assert_eq!(a.config, format!("deploy/config/{}.toml", a.name));
+        }
+        assert_eq!(find("remote_sim").map(|n| n.site), Some(Site::Remote));
+        assert_eq!(of_site(Site::Local).collect::<Vec<_>>(), ["wrist_tracker"]);
+    }
+}

@@ -1,0 +1,110 @@
+//! Typed node configuration: TOML files with unknown fields rejected by name, defaults
+//! for everything, and a validation step for what serde cannot check.
+
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+use teleop_bus::BusConfig;
+
+/// A node's configuration: serde with `deny_unknown_fields`, defaults for everything.
+pub trait NodeConfig: Serialize + DeserializeOwned + Default {
+    /// The bus section, so command-line overrides can be applied.
+    fn bus_mut(&mut self) -> &mut BusConfig;
+    /// Checks values serde cannot (ranges, consistency).
+    ///
+    /// # Errors
+    /// A text naming the offending field.
+    fn validate(&self) -> Result<(), String> {
+        Ok(())
+    }
+}
+
+/// Errors of configuration handling.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ConfigError {
+    #[error("cannot read config file {path}: {source}")]
+    Read {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("invalid config file {path}: {message}")]
+    Parse { path: PathBuf, message: String },
+    #[error("invalid config value: {0}")]
+    Invalid(String),
+    #[error("cannot serialize config: {0}")]
+    Serialize(String),
+}
+
+/// Reads a TOML config file into `T` (whose serde attributes reject unknown fields).
+///
+/// # Errors
+/// [`ConfigError::Read`] for a missing/unreadable file, [`ConfigError::Parse`] naming the
+/// offending field and line for bad content.
+pub fn load_toml<T: DeserializeOwned>(path: &Path) -> Result<T, ConfigError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+        path: path.to_owned(),
+        source,
+    })?;
+    parse_toml(&text).map_err(|message| ConfigError::Parse {
+        path: path.to_owned(),
+        message,
+    })
+}
+
+/// Parses TOML text into `T`; the error text names the field and position.
+///
+/// # Errors
+/// The parser's message.
+pub fn parse_toml<T: DeserializeOwned>(text: &str) -> Result<T, String> {
+    toml::from_str(text).map_err(|e| e.to_string().trim_end().to_owned())
+}
+
+/// Renders a config as TOML (for `--show-default-config`).
+///
+/// # Errors
+/// [`ConfigError::Serialize`] if the value cannot be expressed in TOML.
+pub fn to_toml<T: Serialize>(value: &T) -> Result<String, ConfigError> {
+    toml::to_string_pretty(value).map_err(|e| ConfigError::Serialize(e.to_string()))
+}
+
+/// Loads and validates a config file: what `--config` does.
+///
+/// # Errors
+/// As [`load_toml`], or [`ConfigError::Invalid`] from [`NodeConfig::validate`].
+pub fn load_checked<C: NodeConfig>(path: &Path) -> Result<C, ConfigError> {
+    let cfg: C = load_toml(path)?;
+    cfg.validate()
+        .map_err(|e| ConfigError::Invalid(format!("{}: {e}", path.display())))?;
+    Ok(cfg)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unknown_field_is_named() {
+        let err = parse_toml::<BusConfig>("domain_id = 1\nclock_tolerance = 3\n")
+            .expect_err("unknown field must be rejected");
+        assert!(err.contains("clock_tolerance"), "{err}");
+        let err = parse_toml::<BusConfig>("[zenoh]\nmod = \"peer\"\n").expect_err("rejected");
+        assert!(err.contains("mod"), "{err}");
+    }
+
+    #[test]
+    fn default_round_trips() {
+        let d = BusConfig::default();
+        let text = to_toml(&d).expect("serializes");
+        let back: BusConfig = parse_toml(&text).expect("parses");
+        assert_eq!(back, d);
+    }
+
+    #[test]
+    fn missing_file_is_named() {
+        let e = load_toml::<BusConfig>(Path::new("/nonexistent/x.toml")).expect_err("missing");
+        assert!(e.to_string().contains("/nonexistent/x.toml"), "{e}");
+    }
+}

@@ -1,0 +1,89 @@
+//! One `World::step_once` (dt = 1 ms, 2 hand substeps) of the touching scene with the
+//! first finger pressed into the mouse (one active contact), and of the cup grasp with
+//! all five fingertips in contact.
+//!
+//! The remote camera views: posing the scene and rendering both default 320x240 views
+//! of the touching scene (arm at the simulator node's working posture), one view alone,
+//! and copying both frames into `rgb8` messages, against a baseline in the same run: a
+//! plain copy of the same image bytes.
+//!
+//! ```text
+//! cargo bench -p teleop-remote-site --bench sim
+//! ```
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use nalgebra::SVector;
+use teleop_hardware::HandCommand;
+use teleop_msgs::{Image, Time};
+use teleop_sim::WORKING_POSTURE_RAD;
+use teleop_sim::{
+    CameraViewsConfig, CupGraspConfig, SceneCameras, TouchingTaskConfig, View, World,
+};
+
+fn bench(c: &mut Criterion) {
+    let config = TouchingTaskConfig::default();
+    let Ok(mut touching) = World::touching_task(&config) else {
+        return;
+    };
+    let mut q = SVector::<f64, 17>::from(config.hand_posture_rad);
+    q[1] += 0.3;
+    q[2] += 0.3;
+    touching.command_hand(&HandCommand::Position(q));
+    touching.step(1.0);
+    assert!(
+        touching.fingertip_force_n()[0] > 0.0,
+        "bench scene in contact"
+    );
+    c.bench_function("touching_step_1ms", |b| b.iter(|| touching.step_once()));
+
+    let cup_config = CupGraspConfig::default();
+    let Ok(mut cup) = World::cup_grasp(&cup_config) else {
+        return;
+    };
+    cup.command_hand(&HandCommand::Position(SVector::from(
+        cup_config.closed_posture_rad,
+    )));
+    cup.step(1.0);
+    c.bench_function("cup_grasp_step_1ms", |b| b.iter(|| cup.step_once()));
+
+    let Ok(scene) = World::touching_task(&TouchingTaskConfig {
+        arm_posture_rad: WORKING_POSTURE_RAD,
+        ..TouchingTaskConfig::default()
+    }) else {
+        return;
+    };
+    let Ok(mut cameras) = SceneCameras::new(&scene, &CameraViewsConfig::default()) else {
+        return;
+    };
+    c.bench_function("cameras_render_both_views_320x240", |b| {
+        b.iter(|| cameras.render(&scene))
+    });
+    c.bench_function("cameras_render_top_view_320x240", |b| {
+        b.iter(|| cameras.render_view(&scene, View::Top))
+    });
+    let mut images = [Image::default(), Image::default()];
+    c.bench_function("cameras_frames_to_rgb8_messages", |b| {
+        b.iter(|| {
+            for (view, image) in View::ALL.into_iter().zip(&mut images) {
+                cameras.write_image(view, Time::default(), image);
+            }
+        })
+    });
+    // Baseline: copying the same bytes (two 320x240 rgb8 images).
+    let source: Vec<Vec<u8>> = View::ALL
+        .iter()
+        .map(|v| cameras.frame(*v).rgb().unwrap_or_default().to_vec())
+        .collect();
+    let mut copies = vec![Vec::new(), Vec::new()];
+    c.bench_function("baseline_memcpy_two_rgb8_320x240", |b| {
+        b.iter(|| {
+            for (from, to) in source.iter().zip(&mut copies) {
+                to.clear();
+                to.extend_from_slice(std::hint::black_box(from));
+            }
+        })
+    });
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
