@@ -29,7 +29,10 @@ fn equals_default<C: NodeConfig + PartialEq + std::fmt::Debug>(path: &Path) {
 
 /// Node name (file stem) -> (parse and validate, compare with the defaults). A config
 /// file with no entry fails the test, so no file escapes checking.
-fn checker(stem: &str) -> Option<(fn(&Path), fn(&Path))> {
+/// (parse and validate, compare with the defaults) for one node's config type.
+type Checks = (fn(&Path), fn(&Path));
+
+fn checker(stem: &str) -> Option<Checks> {
     match stem {
         "wrist_tracker" => Some((
             check::<WristTrackerConfig>,

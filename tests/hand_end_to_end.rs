@@ -56,6 +56,7 @@ async fn the_hand_node_follows_with_enable_and_holds_when_targets_stop() {
     let input_pub = op.publisher(&topics::OPERATOR_INPUT).await.unwrap();
     let states = op.subscriber(&topics::HW_HAND_STATE).await.unwrap();
     let status = op.subscriber(&topics::NODE_STATUS).await.unwrap();
+    // The thesis's gating (the default): the right pedal and the switch open the hand.
     let send = |ffj3: Option<f64>, enable: bool| {
         if let Some(q) = ffj3 {
             target_pub.put(&targets(q)).unwrap();
@@ -63,7 +64,7 @@ async fn the_hand_node_follows_with_enable_and_holds_when_targets_stop() {
         input_pub
             .put(&OperatorInput {
                 header: stamp(),
-                clutch: false,
+                clutch: enable,
                 enable,
                 camera_stop: false,
                 motion_scale: 1.0,
@@ -90,6 +91,25 @@ async fn the_hand_node_follows_with_enable_and_holds_when_targets_stop() {
     assert!(
         (released - start).abs() < 0.1,
         "moved without enable: {start} -> {released}"
+    );
+    // Enable held but the clutch pedal up: still no motion.
+    for _ in 0..25 {
+        target_pub.put(&targets(0.9)).unwrap();
+        input_pub
+            .put(&OperatorInput {
+                header: stamp(),
+                clutch: false,
+                enable: true,
+                camera_stop: false,
+                motion_scale: 1.0,
+            })
+            .unwrap();
+        tokio::time::sleep(period).await;
+    }
+    let no_clutch = ffj3().await;
+    assert!(
+        (no_clutch - start).abs() < 0.1,
+        "moved without the clutch: {start} -> {no_clutch}"
     );
 
     // 2 s with enable: the finger reaches the target.
@@ -131,6 +151,10 @@ async fn the_hand_node_follows_with_enable_and_holds_when_targets_stop() {
     let s = seen.expect("a status from the hand node");
     assert!(
         s.counter("hand.hold.enable_released").unwrap_or(0) > 0,
+        "{s:?}"
+    );
+    assert!(
+        s.counter("hand.hold.clutch_released").unwrap_or(0) > 0,
         "{s:?}"
     );
     assert!(

@@ -18,5 +18,7 @@ echo "== cargo fmt --check"
 cargo fmt --all -- --check
 echo "== cargo clippy -D warnings"
 cargo clippy --release --workspace --all-targets --locked -- -D warnings
+echo "== cargo build (node binaries, for the launch test)"
+cargo build --release --workspace --bins --locked
 echo "== cargo test"
 cargo test --release --workspace --locked

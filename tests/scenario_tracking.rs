@@ -1,19 +1,24 @@
-//! Evidence: relative tracking through the clutch on the simulated PR2 arm (first-order
-//! joint lag, velocity/acceleration limits). The operator's wrist traces a square with
-//! sharp corners (the shape of the thesis's Fig. 7.12); the controller runs at 30 Hz;
-//! the error is the palm's distance to the scaled operator motion applied to the
-//! robot's reference pose. Prints the figures (`cargo test --release -p
-//! teleop-remote-site --test scenario_tracking -- --nocapture`).
+//! Evidence: relative tracking through the clutch on the simulated PR2 arm (its own
+//! perturbed velocity lags, velocity/acceleration limits, noisy encoders), through the
+//! hardware safety layer `remote_sim` wraps it in. The operator's wrist traces a square
+//! with sharp corners (the shape of the thesis's Fig. 7.12); the error is the palm's
+//! distance to the scaled operator motion applied to the robot's reference pose in the
+//! base-aligned frame. Prints the figures
+//! (`cargo test --release --workspace --test scenario_tracking -- --nocapture`).
 #![allow(clippy::unwrap_used)]
 
 use nalgebra::{Isometry3, SVector, Translation3, UnitQuaternion, Vector3};
+use teleop_hardware::safety::ArmSafety;
+use teleop_hardware::{ArmHardware, SafeArm};
 use teleop_kinematics::robots;
 use teleop_remote_site::arm_controller::{
-    ArmController, ArmControllerConfig, ArmInputs, OperatorSample, WristSample,
+    ArmController, ArmControllerConfig, ArmInputs, OperatorSample, RegularizationReference,
+    WristSample,
 };
-use teleop_sim::{World, WorldConfig};
+use teleop_remote_site::sim_node::SimSafetyConfig;
+use teleop_sim::{WORKING_POSTURE_RAD, World, WorldConfig};
 
-/// Square path with sharp corners in the operator's wrist frame, side `side_m`, at
+/// Square path with sharp corners in the tracker frame, side `side_m`, at
 /// `speed_m_s`, with a slow wrist rotation.
 fn operator(t: f64, side_m: f64, speed_m_s: f64) -> Isometry3<f64> {
     let s = (t * speed_m_s).rem_euclid(4.0 * side_m);
@@ -33,29 +38,38 @@ fn operator(t: f64, side_m: f64, speed_m_s: f64) -> Isometry3<f64> {
     )
 }
 
+#[derive(Debug, Clone, Copy)]
 struct Figures {
     mean_mm: f64,
     max_mm: f64,
     rms_mm: f64,
 }
 
-fn run(scale: f64, side_m: f64, speed_m_s: f64, duration_s: f64) -> Figures {
-    let cfg = ArmControllerConfig::default();
-    let rate = 30.0;
-    let dt = 1.0 / rate;
+/// `duration_s` of tracking at the controller's rate, motion scale `scale`, the
+/// operator's square `side_m` at `speed_m_s`.
+fn run(
+    cfg: ArmControllerConfig,
+    scale: f64,
+    side_m: f64,
+    speed_m_s: f64,
+    duration_s: f64,
+) -> Figures {
+    let dt = 1.0 / cfg.rate_hz;
     let mut world = World::new(WorldConfig::default()).unwrap();
-    let q0 = SVector::<f64, 7>::from_column_slice(&[-0.5, 0.3, -1.0, -1.4, 0.3, -0.1, 0.1]);
-    world.set_arm_position(&q0);
+    world.set_arm_position(&SVector::from(WORKING_POSTURE_RAD));
     let chain = robots::pr2_arm_chain().unwrap();
+    let (world, sim_arm, _hand) = teleop_sim::share(world);
+    let safety = ArmSafety::new(chain.clone(), SimSafetyConfig::default().arm).unwrap();
+    let mut arm = SafeArm::new(sim_arm, safety);
     let mut ctrl = ArmController::new(chain.clone(), cfg).unwrap();
     let mut t = 0.0;
     let mut errors = Vec::new();
     let mut refs: Option<(Isometry3<f64>, Isometry3<f64>)> = None;
-    let steps = (duration_s * rate) as usize;
+    let steps = (duration_s / dt).round() as usize;
     for _ in 0..steps {
         t += dt;
         let human = operator(t, side_m, speed_m_s);
-        let state = world.arm_state();
+        let state = arm.read(t).unwrap();
         let inputs = ArmInputs {
             operator: Some(OperatorSample {
                 received_s: t,
@@ -68,20 +82,22 @@ fn run(scale: f64, side_m: f64, speed_m_s: f64, duration_s: f64) -> Figures {
                 pose: human,
             }),
             operator_site_alive: true,
+            commander_conflict: false,
         };
         let out = ctrl.step(t, &inputs, &state);
         assert!(out.stopped.is_none(), "{:?}", out.stopped);
         if refs.is_none() {
-            refs = Some((human, chain.end_pose(&state.position_rad)));
+            let w = world.lock().unwrap();
+            refs = Some((human, chain.end_pose(&w.arm_position_rad())));
         }
-        world.command_arm(&out.command.velocity_rad_s);
-        world.step(dt);
+        arm.write(t, &out.command).unwrap();
+        let mut w = world.lock().unwrap();
+        w.step(dt);
         let (h_ref, r_ref) = refs.unwrap();
-        let mut delta = h_ref.inverse() * human;
-        delta.translation.vector *= scale;
-        let expected = r_ref * delta;
-        let palm = chain.end_pose(&world.arm_position_rad());
-        errors.push((palm.translation.vector - expected.translation.vector).norm());
+        let expected = r_ref.translation.vector
+            + (human.translation.vector - h_ref.translation.vector) * scale;
+        let palm = chain.end_pose(&w.arm_position_rad());
+        errors.push((palm.translation.vector - expected).norm());
     }
     let n = errors.len() as f64;
     Figures {
@@ -91,19 +107,30 @@ fn run(scale: f64, side_m: f64, speed_m_s: f64, duration_s: f64) -> Figures {
     }
 }
 
+fn at_rate(rate_hz: f64) -> ArmControllerConfig {
+    ArmControllerConfig {
+        rate_hz,
+        ..ArmControllerConfig::default()
+    }
+}
+
+fn print(label: &str, f: Figures) {
+    println!(
+        "{label:<62} mean {:6.2} mm  rms {:6.2} mm  max {:6.2} mm",
+        f.mean_mm, f.rms_mm, f.max_mm
+    );
+}
+
+/// The thesis's fine-task scale (1/3) on a 20 cm square and full scale on a square of
+/// the same robot-side size; operator at 5 cm/s resp. 1.7 cm/s (one lap in 16 s).
 #[test]
 fn relative_tracking_error_through_the_clutch() {
-    // The thesis's fine-task scale (1/3) on a 20 cm square, and full scale on a square
-    // of the same robot-side size; operator at 5 cm/s resp. 1.7 cm/s (one lap in 16 s).
     for (scale, side, speed, label) in [
         (1.0 / 3.0, 0.2, 0.05, "1/3"),
         (1.0, 0.2 / 3.0, 0.05 / 3.0, "1"),
     ] {
-        let f = run(scale, side, speed, 16.0);
-        println!(
-            "motion scale {label}: mean {:.2} mm, rms {:.2} mm, max {:.2} mm (30 Hz, 16 s, operator square {side:.3} m at {speed:.3} m/s)",
-            f.mean_mm, f.rms_mm, f.max_mm
-        );
+        let f = run(at_rate(30.0), scale, side, speed, 16.0);
+        print(&format!("defaults, 30 Hz, motion scale {label}"), f);
         assert!(
             f.mean_mm <= 5.0,
             "mean error {} mm at scale {label}",
@@ -115,4 +142,86 @@ fn relative_tracking_error_through_the_clutch() {
             f.max_mm
         );
     }
+}
+
+/// The law's gains are per second: the same behaviour at 30 Hz and 1 kHz. With the
+/// earlier per-period `d2` (0.1 per period = 100 /s at 1 kHz) it was not.
+#[test]
+fn tracking_is_the_same_at_30_hz_and_1_khz() {
+    let (scale, side, speed) = (1.0 / 3.0, 0.2, 0.05);
+    let slow = run(at_rate(30.0), scale, side, speed, 16.0);
+    let fast = run(at_rate(1000.0), scale, side, speed, 16.0);
+    let per_period = run(
+        ArmControllerConfig {
+            feedback_gain_per_s: 0.1 * 1000.0,
+            ..at_rate(1000.0)
+        },
+        scale,
+        side,
+        speed,
+        16.0,
+    );
+    print("30 Hz (gain 3 /s)", slow);
+    print("1 kHz (gain 3 /s)", fast);
+    print("1 kHz with the per-period d2 = 0.1 (100 /s)", per_period);
+    let ratio = fast.mean_mm / slow.mean_mm;
+    assert!(
+        (0.75..=1.33).contains(&ratio),
+        "1 kHz / 30 Hz mean error {ratio}"
+    );
+    // The per-period gain is 33x stiffer at 1 kHz: the arm hugs the IK solution
+    // more tightly than at 30 Hz (the rest of the error is the IK's smoothing).
+    assert!(
+        per_period.mean_mm < 0.8 * fast.mean_mm,
+        "per-period gain {} mm vs {} mm",
+        per_period.mean_mm,
+        fast.mean_mm
+    );
+}
+
+/// The thesis's IK comparison (Figs. 7.12-7.13): regularization weight 0.5 vs 1
+/// (bio_ik terms), toward the previous solution (default) and toward the measured
+/// joints (as the thesis text reads), on a faster square (10 cm/s) where smoothing
+/// shows at the corners.
+#[test]
+fn regularization_weight_and_reference_compared() {
+    let (scale, side, speed) = (1.0, 0.2, 0.1);
+    let mut results = Vec::new();
+    for reference in [
+        RegularizationReference::PreviousSolution,
+        RegularizationReference::MeasuredJoints,
+    ] {
+        for weight in [0.5, 1.0] {
+            let cfg = ArmControllerConfig {
+                regularization_weight: weight,
+                regularization_reference: reference,
+                ..at_rate(30.0)
+            };
+            let f = run(cfg, scale, side, speed, 8.0);
+            print(
+                &format!("{reference:?}, weight {weight}, square 0.2 m at 0.1 m/s"),
+                f,
+            );
+            results.push((reference, weight, f));
+        }
+    }
+    let get = |r, w| {
+        results
+            .iter()
+            .find(|(rr, ww, _)| *rr == r && *ww == w)
+            .unwrap()
+            .2
+    };
+    // Weight 1 smooths more than 0.5 (the thesis's finding), for either reference.
+    for r in [
+        RegularizationReference::PreviousSolution,
+        RegularizationReference::MeasuredJoints,
+    ] {
+        assert!(get(r, 1.0).max_mm > get(r, 0.5).max_mm, "{r:?}");
+    }
+    // Pulling toward the lagging measured joints costs accuracy.
+    assert!(
+        get(RegularizationReference::MeasuredJoints, 0.5).mean_mm
+            > get(RegularizationReference::PreviousSolution, 0.5).mean_mm
+    );
 }

@@ -67,6 +67,7 @@ fn run(rate_hz: f64, steps: usize) {
                 pose: wrist,
             }),
             operator_site_alive: true,
+            commander_conflict: false,
         };
         let state = ArmState {
             time_s: t,
@@ -78,11 +79,16 @@ fn run(rate_hz: f64, steps: usize) {
         t_ctrl.push(t0.elapsed().as_secs_f64() * 1e6);
         // Baseline: the IK solve alone on the controller's own (limited) target.
         if let Some(target) = out.target {
+            let cfg = ctrl.config();
             let goals = [
-                Goal::pose(target),
+                Goal::Pose {
+                    target,
+                    weight: 1.0,
+                    rotation_scale: cfg.rotation_scale,
+                },
                 Goal::JointRegularization {
-                    reference: q,
-                    weight: 0.5,
+                    reference: q_ik,
+                    weight: cfg.ik_regularization_weight(dt),
                 },
             ];
             let t0 = Instant::now();

@@ -11,11 +11,12 @@
 use std::time::Instant;
 
 use nalgebra::SVector;
+use teleop_control::OperatorSample;
 use teleop_control::hand::{HandControllerConfig, HandMode, ShadowHandController};
 use teleop_hardware::HandState;
 use teleop_interfaces::joints::SHADOW_FINGER_JOINTS as FINGER_JOINTS;
 use teleop_msgs::JointState;
-use teleop_remote_site::hand_controller::{EnableSample, HandSupervisor, HandSupervisorConfig};
+use teleop_remote_site::hand_controller::{HandSupervisor, HandSupervisorConfig};
 use teleop_sim::{CupGraspConfig, World};
 
 fn pct(v: &mut [f64], p: f64) -> f64 {
@@ -61,9 +62,11 @@ fn main() {
             let t0 = Instant::now();
             sup.accept_target(&msg, t).unwrap();
             t_target.push(t0.elapsed().as_secs_f64() * 1e6);
-            let enable = Some(EnableSample {
+            let enable = Some(OperatorSample {
                 received_s: t,
+                clutch: true,
                 enable: true,
+                motion_scale: 1.0,
             });
             let t0 = Instant::now();
             let out = sup.step(t, enable, true, s, Some(&arm));

@@ -5,36 +5,52 @@
 //!
 //! # Behaviour
 //!
-//! * **Clutch.** The arm moves only while the operator's clutch pedal is pressed *and*
-//!   the enable (deadman) switch is held, with fresh operator input and the operator
-//!   site alive. On engage the controller remembers the operator's wrist pose `H_ref`
-//!   and the robot's wrist pose `R_ref`; while engaged the target is
-//!   `R_ref * scale(H_ref^-1 * H_now)`, where `scale` multiplies the translation of the
-//!   relative motion by the motion scale (the thesis used 1/3 for fine tasks). Releasing
-//!   the clutch stops the arm; pressing it again starts from the new poses, so the
-//!   operator can re-centre.
+//! * **Gate.** The arm moves only while the [`OperatorGate`] is open: operator site
+//!   alive, fresh operator input, a valid motion scale, the enable (deadman) switch
+//!   held and the clutch pedal pressed.
+//! * **Clutch.** On engage the controller remembers the operator's hand pose `H_ref`
+//!   (the tracked marker pose times the marker-to-hand calibration) and the robot's
+//!   palm pose `R_ref`. While engaged the target follows the operator's motion since
+//!   then, its translation multiplied by the motion scale (the thesis used 1/3 for fine
+//!   tasks), in one of two frames ([`RelativeFrame`]):
+//!   * **base-aligned** (default): the hand's displacement `H_now.t - H_ref.t` and
+//!     rotation `H_now.R H_ref.R^T`, both in the tracker frame, are turned into the
+//!     robot's base frame by the fixed operator-to-robot rotation `A`:
+//!     `t = R_ref.t + s A (H_now.t - H_ref.t)`, `R = (A H_now.R H_ref.R^T A^T) R_ref.R`.
+//!     Moving the hand to the operator's right moves the robot to the robot's right,
+//!     however the hand was turned at the clutch press;
+//!   * **wrist** (the earlier behaviour): `R_ref * scale(H_ref^-1 * H_now)`, the motion
+//!     taken in the operator's hand frame and applied in the robot's palm frame, so the
+//!     direction depends on how hand and palm were turned at the press.
+//!
+//!   Releasing the clutch stops the arm; pressing it again starts from the new poses,
+//!   so the operator can re-centre.
 //! * **Filters.** Every wrist pose passes the jump filter (> 50 cm along an axis or > 60
 //!   deg since the last accepted pose is rejected, named and counted); the target passes
-//!   the Cartesian limiter (0.2 m/s, 2 rad/s, 2 m/s^2); the IK (pose goal weight 1 and
-//!   regularization, weight 0.5, toward the controller's current joint solution, i.e. the
-//!   previous IK solution) is warm-started from its last solution; the velocity law is
-//!   `v = (d1 (q_ik(t) - q_ik(t-1)) + d2 (q_ik(t) - q_robot(t))) / dt` (eq. 6.1 with the
-//!   joint differences per control period turned into rad/s: `d1` scales the IK's
-//!   feed-forward velocity, `d2 / dt` is a proportional gain), then the joint velocity
-//!   limiter (URDF limits, uniform scaling so the direction is kept; positions never
-//!   driven past their limits).
+//!   the Cartesian limiter (0.2 m/s, 2 rad/s, 2 m/s^2); the IK (thesis: bio_ik with a
+//!   pose goal of weight 1 and a regularization goal of weight 0.5; see
+//!   [`ArmControllerConfig::regularization_weight`] for how the weights map onto ours)
+//!   is warm-started from its last solution; the velocity law is eq. 6.1 with its gains
+//!   expressed per second ([`ArmControllerConfig::feedback_gain_per_s`]):
+//!   `v = d1 (q_ik(t) - q_ik(t-1)) / dt + k (q_ik(t) - q_robot(t))`, so it behaves the
+//!   same at 30 Hz and at 1 kHz; then the joint velocity limiter (URDF limits, uniform
+//!   scaling so the direction is kept; positions never driven past their limits).
+//! * **Time step.** `dt` is measured between steps (a skipped tick gives a longer
+//!   step) and clamped to `max_dt_s`.
 //! * **Watchdog.** No valid wrist pose for longer than `pose_deadline_s` while engaged,
-//!   operator input older than `input_deadline_s`, the enable switch released, the
-//!   operator site's liveliness lost, an invalid motion scale or a non-finite arm state:
+//!   the gate closing for any reason but the clutch (operator input stale, enable
+//!   released, operator site lost, invalid motion scale) or a non-finite arm state:
 //!   zero velocity at once and disengage. After such a *safety* stop the arm re-engages
 //!   only on a fresh clutch press (the clutch must be seen released first).
 
-use nalgebra::{Isometry3, SVector, Translation3};
+use nalgebra::{Isometry3, SVector, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 use teleop_control::{
-    CartesianLimiter, CartesianLimits, JointLimiterConfig, JointLimits, JointVelocityLimiter,
-    JumpFilter, JumpFilterConfig, VelocityLimitStrategy,
+    CartesianLimiter, CartesianLimits, Closed, GateMode, JointLimiterConfig, JointLimits,
+    JointVelocityLimiter, JumpFilter, JumpFilterConfig, OperatorGate, VelocityLimitStrategy,
 };
+
+pub use teleop_control::OperatorSample;
 use teleop_ik::{Goal, IkSettings, Solver};
 use teleop_kinematics::FixedChain;
 
@@ -45,24 +61,107 @@ pub type ArmCommand = Command<7>;
 /// The PR2 chain's state.
 pub type ArmState = State<7>;
 
-/// Settings of the arm controller. Defaults are the thesis values.
-///
-/// The regularization goal pulls toward the previous IK solution, not toward the
-/// measured joints: with `d1 = 0.7` the arm lags its IK solution by design, and pulling
-/// the IK toward the lagging measurement makes the target drift (measured on the
-/// simulated arm, 1/3 scale, 20 cm square: 45 mm mean error toward the measured joints,
-/// 4 mm toward the previous solution; `tests/scenario_tracking.rs`).
+/// The thesis's control period (30 Hz): the rate its IK weights were tuned at, s.
+pub const THESIS_PERIOD_S: f64 = 1.0 / 30.0;
+
+/// In which frame the operator's relative motion is applied to the robot.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RelativeFrame {
+    /// Displacements and rotations in the tracker frame, turned into the robot's base
+    /// frame by the fixed operator-to-robot rotation (see the [module docs](self)).
+    #[default]
+    BaseAligned,
+    /// The motion in the hand's own frame applied in the palm's frame.
+    Wrist,
+}
+
+/// What the IK's regularization goal pulls toward.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RegularizationReference {
+    /// The previous IK solution (default): measured on the simulated arm, pulling toward
+    /// the arm that lags its IK solution by design (`d1 < 1`) makes the target drift.
+    #[default]
+    PreviousSolution,
+    /// The measured joints, as the thesis text reads ("close to the current state").
+    MeasuredJoints,
+}
+
+/// A rigid transform in config form: translation (m) and roll/pitch/yaw (deg, applied
+/// about fixed x, y, z).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct TransformConfig {
+    pub translation_m: [f64; 3],
+    pub rpy_deg: [f64; 3],
+}
+
+impl TransformConfig {
+    /// As an isometry.
+    pub fn isometry(&self) -> Isometry3<f64> {
+        let [r, p, y] = self.rpy_deg.map(f64::to_radians);
+        Isometry3::from_parts(
+            Translation3::from(nalgebra::Vector3::from(self.translation_m)),
+            UnitQuaternion::from_euler_angles(r, p, y),
+        )
+    }
+
+    fn validate(&self, name: &str) -> Result<(), String> {
+        if self
+            .translation_m
+            .iter()
+            .chain(&self.rpy_deg)
+            .all(|v| v.is_finite() && v.abs() <= 1e3)
+        {
+            Ok(())
+        } else {
+            Err(format!("arm.{name} must be finite"))
+        }
+    }
+}
+
+/// Settings of the arm controller. Defaults are the thesis values where it gives them.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ArmControllerConfig {
     /// Control rate, Hz (thesis: 30; up to 1000).
     pub rate_hz: f64,
-    /// Weight of the regularization goal toward the current joints (thesis: 0.5).
+    /// Longest time step used, s (after a stall the law does not extrapolate further).
+    /// Default 0.1.
+    pub max_dt_s: f64,
+    /// Weight of the IK's regularization goal **as bio_ik weighs goals**, at the
+    /// thesis's 30 Hz (thesis: 0.5; 1.0 over-smoothed). bio_ik minimizes
+    /// `sum_i w_i^2 c_i` with each goal's cost `c_i` (position error in m^2, joint
+    /// displacement in rad^2), so this weight enters our solver's cost squared: 0.5
+    /// here is 0.25 in `teleop_ik` terms. Toward the previous solution the goal
+    /// penalizes each step's joint displacement, which shrinks with the step: so that
+    /// the smoothing does not change with the rate, the weight is also multiplied by
+    /// `(1/30 s) / dt` ([`ArmControllerConfig::ik_regularization_weight`]).
     pub regularization_weight: f64,
-    /// Feed-forward factor `d1` of eq. 6.1 (thesis: 0.7).
+    /// What the regularization goal pulls toward.
+    pub regularization_reference: RegularizationReference,
+    /// Weight of the rotation error in the pose goal, on the rotation vector (rad).
+    /// Default 0.25: bio_ik's pose goal weighs the squared quaternion difference
+    /// (~ angle^2 / 4) by `rotation_scale^2` with its default 0.5, i.e. the rotation
+    /// vector by 0.25.
+    pub rotation_scale: f64,
+    /// Feed-forward factor `d1` of eq. 6.1 (thesis: 0.7): the fraction of the IK's own
+    /// joint velocity commanded.
     pub d1: f64,
-    /// Feedback factor `d2` of eq. 6.1 (thesis: 0.1).
-    pub d2: f64,
+    /// Feedback gain of eq. 6.1 per second: the thesis's `d2 = 0.1` acted once per
+    /// 30 Hz period, i.e. 3 /s. Written per second so the law does not change with the
+    /// rate (at 1 kHz `d2` per period would be 33x stiffer).
+    pub feedback_gain_per_s: f64,
+    /// Frame of the relative motion.
+    pub frame: RelativeFrame,
+    /// Rotation from the operator's tracker frame to the robot's base frame
+    /// (base-aligned mode), roll/pitch/yaw in deg. Default identity: the tracker's x, y,
+    /// z are the robot's (the operator faces the way the robot faces).
+    pub operator_to_robot_rpy_deg: [f64; 3],
+    /// The hand's frame relative to the tracked marker on the back of the hand
+    /// (calibration). Default identity.
+    pub marker_to_hand: TransformConfig,
     /// Longest time without a valid wrist pose while engaged, s.
     pub pose_deadline_s: f64,
     /// Longest age of the operator input (pedals, enable), s. Default 0.2 (ten periods
@@ -82,9 +181,15 @@ impl Default for ArmControllerConfig {
     fn default() -> Self {
         Self {
             rate_hz: 30.0,
+            max_dt_s: 0.1,
             regularization_weight: 0.5,
+            regularization_reference: RegularizationReference::PreviousSolution,
+            rotation_scale: 0.25,
             d1: 0.7,
-            d2: 0.1,
+            feedback_gain_per_s: 3.0,
+            frame: RelativeFrame::BaseAligned,
+            operator_to_robot_rpy_deg: [0.0; 3],
+            marker_to_hand: TransformConfig::default(),
             pose_deadline_s: 0.1,
             input_deadline_s: 0.2,
             max_ik_position_error_m: 0.01,
@@ -101,14 +206,16 @@ impl ArmControllerConfig {
     pub fn validate(&self) -> Result<(), String> {
         let checks = [
             ("rate_hz", self.rate_hz, 1.0, 1000.0),
+            ("max_dt_s", self.max_dt_s, 1e-3, 1.0),
             (
                 "regularization_weight",
                 self.regularization_weight,
                 0.0,
                 100.0,
             ),
+            ("rotation_scale", self.rotation_scale, 0.0, 10.0),
             ("d1", self.d1, 0.0, 10.0),
-            ("d2", self.d2, 0.0, 10.0),
+            ("feedback_gain_per_s", self.feedback_gain_per_s, 0.0, 1000.0),
             ("pose_deadline_s", self.pose_deadline_s, 1e-3, 10.0),
             ("input_deadline_s", self.input_deadline_s, 1e-3, 10.0),
             (
@@ -129,20 +236,28 @@ impl ArmControllerConfig {
                 return Err(format!("arm.{name} must be in [{lo}, {hi}], got {v}"));
             }
         }
+        TransformConfig {
+            translation_m: [0.0; 3],
+            rpy_deg: self.operator_to_robot_rpy_deg,
+        }
+        .validate("operator_to_robot_rpy_deg")?;
+        self.marker_to_hand.validate("marker_to_hand")?;
         self.jump.validate().map_err(|e| format!("arm.jump: {e}"))?;
         self.cartesian
             .validate()
             .map_err(|e| format!("arm.cartesian: {e}"))
     }
-}
 
-/// The operator's pedals and switches as received (robot clock).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct OperatorSample {
-    pub received_s: f64,
-    pub clutch: bool,
-    pub enable: bool,
-    pub motion_scale: f64,
+    /// The regularization weight in `teleop_ik`'s terms for a step of `dt_s`: the
+    /// bio_ik weight squared, times `(1/30 s) / dt` toward the previous solution (see
+    /// [`ArmControllerConfig::regularization_weight`]).
+    pub fn ik_regularization_weight(&self, dt_s: f64) -> f64 {
+        let w = self.regularization_weight * self.regularization_weight;
+        match self.regularization_reference {
+            RegularizationReference::PreviousSolution => w * THESIS_PERIOD_S / dt_s,
+            RegularizationReference::MeasuredJoints => w,
+        }
+    }
 }
 
 /// A wrist pose as received (robot clock), in the operator's tracker frame.
@@ -159,6 +274,10 @@ pub struct ArmInputs {
     pub wrist: Option<WristSample>,
     /// The operator site's nodes are alive (liveliness).
     pub operator_site_alive: bool,
+    /// The wrist poses and the pedals come from different operator sites (the node
+    /// checks the publishers' identities): the arm does not engage. An engaged arm keeps
+    /// following the sources it locked onto.
+    pub commander_conflict: bool,
 }
 
 /// Why the arm is not moving.
@@ -183,9 +302,13 @@ pub enum StopReason {
     AwaitingClutchRelease,
     /// Clutch pressed, but no fresh wrist pose to engage from.
     NoWristPose,
+    /// Clutch pressed, but the wrist poses and the pedals come from different operator
+    /// sites: no engagement.
+    CommanderConflict,
 }
 
 impl StopReason {
+    /// Short name for counters.
     pub fn name(self) -> &'static str {
         match self {
             StopReason::ClutchReleased => "clutch_released",
@@ -197,6 +320,7 @@ impl StopReason {
             StopReason::InvalidArmState => "invalid_arm_state",
             StopReason::AwaitingClutchRelease => "awaiting_clutch_release",
             StopReason::NoWristPose => "no_wrist_pose",
+            StopReason::CommanderConflict => "commander_conflict",
         }
     }
 
@@ -207,6 +331,7 @@ impl StopReason {
             StopReason::ClutchReleased
                 | StopReason::AwaitingClutchRelease
                 | StopReason::NoWristPose
+                | StopReason::CommanderConflict
         )
     }
 }
@@ -246,6 +371,10 @@ pub struct ArmCounters {
 #[derive(Debug)]
 pub struct ArmController {
     cfg: ArmControllerConfig,
+    gate: OperatorGate,
+    operator_to_robot: UnitQuaternion<f64>,
+    marker_to_hand: Isometry3<f64>,
+    last_step_s: Option<f64>,
     solver: Solver<7>,
     jump: JumpFilter,
     limiter: CartesianLimiter,
@@ -292,7 +421,15 @@ impl ArmController {
                 ..IkSettings::default()
             },
         );
+        let [r, p, y] = cfg.operator_to_robot_rpy_deg.map(f64::to_radians);
         Ok(Self {
+            gate: OperatorGate {
+                input_timeout_s: cfg.input_deadline_s,
+                mode: GateMode::ClutchAndEnable,
+            },
+            operator_to_robot: UnitQuaternion::from_euler_angles(r, p, y),
+            marker_to_hand: cfg.marker_to_hand.isometry(),
+            last_step_s: None,
             cfg,
             solver,
             jump,
@@ -373,35 +510,70 @@ impl ArmController {
         }
     }
 
+    /// The robot target for the operator's hand at `human_now`, given the references
+    /// taken at the clutch press and the motion scale.
+    pub fn relative_target(
+        &self,
+        human_ref: &Isometry3<f64>,
+        human_now: &Isometry3<f64>,
+        robot_ref: &Isometry3<f64>,
+        motion_scale: f64,
+    ) -> Isometry3<f64> {
+        match self.cfg.frame {
+            RelativeFrame::BaseAligned => {
+                let a = self.operator_to_robot;
+                let dp = human_now.translation.vector - human_ref.translation.vector;
+                let dr = human_now.rotation * human_ref.rotation.inverse();
+                Isometry3::from_parts(
+                    Translation3::from(robot_ref.translation.vector + a * (dp * motion_scale)),
+                    a * dr * a.inverse() * robot_ref.rotation,
+                )
+            }
+            RelativeFrame::Wrist => {
+                let mut delta = human_ref.inverse() * human_now;
+                delta.translation = Translation3::from(delta.translation.vector * motion_scale);
+                robot_ref * delta
+            }
+        }
+    }
+
     /// One control step at time `now_s` (robot clock, seconds).
     pub fn step(&mut self, now_s: f64, inputs: &ArmInputs, arm: &ArmState) -> ArmStep {
         self.counters.steps += 1;
-        let dt = 1.0 / self.cfg.rate_hz;
+        let nominal = 1.0 / self.cfg.rate_hz;
+        let dt = match self.last_step_s {
+            Some(t) if now_s > t => (now_s - t).min(self.cfg.max_dt_s),
+            _ => nominal,
+        };
+        self.last_step_s = Some(now_s);
         if !(arm.position_rad.iter().all(|v| v.is_finite())
             && arm.velocity_rad_s.iter().all(|v| v.is_finite()))
         {
             return self.stop(StopReason::InvalidArmState);
         }
-        if !inputs.operator_site_alive {
-            return self.stop(StopReason::OperatorSiteLost);
-        }
-        let Some(op) = inputs.operator.filter(|o| {
-            o.received_s.is_finite() && now_s - o.received_s <= self.cfg.input_deadline_s
-        }) else {
-            return self.stop(StopReason::StaleOperatorInput);
+        let op = match self
+            .gate
+            .check(now_s, inputs.operator.as_ref(), inputs.operator_site_alive)
+        {
+            Ok(op) => op,
+            Err(closed) => {
+                let reason = match closed {
+                    Closed::OperatorSiteLost => StopReason::OperatorSiteLost,
+                    Closed::StaleInput => StopReason::StaleOperatorInput,
+                    Closed::InvalidMotionScale => {
+                        self.counters.rejected_operator_inputs += 1;
+                        StopReason::InvalidMotionScale
+                    }
+                    Closed::EnableReleased => StopReason::EnableReleased,
+                    Closed::ClutchReleased => {
+                        // A released clutch clears a latched safety stop.
+                        self.latched = None;
+                        StopReason::ClutchReleased
+                    }
+                };
+                return self.stop(reason);
+            }
         };
-        if !(op.motion_scale.is_finite() && op.motion_scale > 0.0 && op.motion_scale <= 1.0) {
-            self.counters.rejected_operator_inputs += 1;
-            return self.stop(StopReason::InvalidMotionScale);
-        }
-        if !op.enable {
-            return self.stop(StopReason::EnableReleased);
-        }
-        if !op.clutch {
-            // A released clutch clears a latched safety stop.
-            self.latched = None;
-            return self.stop(StopReason::ClutchReleased);
-        }
         if self.latched.is_some() {
             return self.stop(StopReason::AwaitingClutchRelease);
         }
@@ -412,6 +584,9 @@ impl ArmController {
             (Some(_), None) => return self.stop(StopReason::StaleWristPose),
             (None, None) => return self.stop(StopReason::NoWristPose),
             (Some(e), Some(_)) => e,
+            (None, Some(_)) if inputs.commander_conflict => {
+                return self.stop(StopReason::CommanderConflict);
+            }
             (None, Some(w)) => {
                 // Engage: the first pose must itself be valid.
                 self.jump.reset();
@@ -425,10 +600,11 @@ impl ArmController {
                     return self.stop(StopReason::InvalidArmState);
                 }
                 self.counters.engagements += 1;
+                let human = w.pose * self.marker_to_hand;
                 Engaged {
-                    human_ref: w.pose,
+                    human_ref: human,
                     robot_ref,
-                    human_now: w.pose,
+                    human_now: human,
                     last_pose_s: now_s,
                     last_pose_received_s: w.received_s,
                     q_ik: arm.position_rad,
@@ -443,7 +619,7 @@ impl ArmController {
             engaged.last_pose_received_s = w.received_s;
             match self.jump.filter(&w.pose) {
                 Ok(p) => {
-                    engaged.human_now = p;
+                    engaged.human_now = p * self.marker_to_hand;
                     engaged.last_pose_s = now_s;
                 }
                 Err(e) => {
@@ -456,9 +632,12 @@ impl ArmController {
             self.engaged = Some(engaged);
             return self.stop(StopReason::StaleWristPose);
         }
-        let mut delta = engaged.human_ref.inverse() * engaged.human_now;
-        delta.translation = Translation3::from(delta.translation.vector * op.motion_scale);
-        let target = engaged.robot_ref * delta;
+        let target = self.relative_target(
+            &engaged.human_ref,
+            &engaged.human_now,
+            &engaged.robot_ref,
+            op.motion_scale,
+        );
         let limited = match self.limiter.step(&target, dt) {
             Ok(p) => p,
             Err(_) => {
@@ -466,11 +645,19 @@ impl ArmController {
                 return self.stop(StopReason::InvalidArmState);
             }
         };
+        let reference = match self.cfg.regularization_reference {
+            RegularizationReference::PreviousSolution => engaged.q_ik,
+            RegularizationReference::MeasuredJoints => arm.position_rad,
+        };
         let goals = [
-            Goal::pose(limited),
+            Goal::Pose {
+                target: limited,
+                weight: 1.0,
+                rotation_scale: self.cfg.rotation_scale,
+            },
             Goal::JointRegularization {
-                reference: engaged.q_ik,
-                weight: self.cfg.regularization_weight,
+                reference,
+                weight: self.cfg.ik_regularization_weight(dt),
             },
         ];
         let q_ik = match self.solver.solve_tracking(&goals, &engaged.q_ik) {
@@ -506,8 +693,10 @@ impl ArmController {
                 target: Some(limited),
             };
         };
-        let v =
-            (self.cfg.d1 * (q_ik - engaged.q_ik) + self.cfg.d2 * (q_ik - arm.position_rad)) / dt;
+        // Eq. 6.1 with per-second gains: d1 times the IK's joint velocity, plus a
+        // proportional pull toward the IK solution.
+        let v = self.cfg.d1 * (q_ik - engaged.q_ik) / dt
+            + self.cfg.feedback_gain_per_s * (q_ik - arm.position_rad);
         engaged.q_ik = q_ik;
         self.engaged = Some(engaged);
         self.last_stop = None;

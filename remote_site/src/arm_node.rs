@@ -6,13 +6,14 @@ use std::time::Duration;
 
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
-use teleop_bus::{Bus, BusConfig, NodeWatch, Subscriber};
+use teleop_bus::{Bus, BusConfig, NodeWatch};
 use teleop_hardware::ArmHardware;
 use teleop_hardware_bus::BusArm;
 use teleop_interfaces::hardware::PR2_ARM;
 use teleop_interfaces::{Site, nodes, topics};
 use teleop_msgs::{Lifecycle, OperatorInput, Pose, PoseStamped};
-use teleop_node::{FinalReport, Node, NodeConfig};
+use teleop_node::source::{CommanderConfig, Takeover};
+use teleop_node::{FinalReport, Node, NodeConfig, SourceLock};
 
 use crate::arm_controller::{
     ArmCommand, ArmController, ArmControllerConfig, ArmInputs, OperatorSample, WristSample,
@@ -28,6 +29,8 @@ pub struct ArmNodeConfig {
     pub operator_site_nodes: Vec<String>,
     /// The arm hardware's state counts as lost after this long, s.
     pub hardware_timeout_s: f64,
+    /// One commanding operator site at a time.
+    pub commander: CommanderConfig,
     pub arm: ArmControllerConfig,
     pub bus: BusConfig,
 }
@@ -38,6 +41,7 @@ impl Default for ArmNodeConfig {
             node_name: PR2_ARM.controller_node.into(),
             operator_site_nodes: nodes::of_site(Site::Local).map(String::from).collect(),
             hardware_timeout_s: 0.1,
+            commander: CommanderConfig::default(),
             arm: ArmControllerConfig::default(),
             bus: BusConfig::default(),
         }
@@ -70,6 +74,7 @@ impl NodeConfig for ArmNodeConfig {
     }
     fn validate(&self) -> Result<(), String> {
         check_controller_links(&self.operator_site_nodes, self.hardware_timeout_s)?;
+        self.commander.validate()?;
         self.arm.validate()
     }
 }
@@ -88,8 +93,9 @@ pub fn isometry(p: &Pose) -> Isometry3<f64> {
 #[derive(Debug)]
 pub struct ArmNode {
     operator_site_nodes: Vec<String>,
-    wrist_sub: Subscriber<PoseStamped>,
-    input_sub: Subscriber<OperatorInput>,
+    commander: CommanderConfig,
+    wrist_sub: SourceLock<PoseStamped>,
+    input_sub: SourceLock<OperatorInput>,
     watch: NodeWatch,
     hw: BusArm<7>,
     ctrl: ArmController,
@@ -110,8 +116,15 @@ impl ArmNode {
             ArmController::new(teleop_kinematics::robots::pr2_arm_chain()?, cfg.arm.clone())?;
         Ok(Self {
             operator_site_nodes: cfg.operator_site_nodes.clone(),
-            wrist_sub: bus.subscriber(&topics::WRIST_POSE).await?,
-            input_sub: bus.subscriber(&topics::OPERATOR_INPUT).await?,
+            commander: cfg.commander,
+            wrist_sub: SourceLock::new(
+                bus.subscriber(&topics::WRIST_POSE).await?,
+                cfg.commander.release_after_s,
+            ),
+            input_sub: SourceLock::new(
+                bus.subscriber(&topics::OPERATOR_INPUT).await?,
+                cfg.commander.release_after_s,
+            ),
             watch: bus.watch_nodes().await?,
             hw: BusArm::new(bus, &PR2_ARM, cfg.hardware_timeout_s).await?,
             ctrl,
@@ -135,13 +148,23 @@ impl Node for ArmNode {
     }
 
     fn tick(&mut self, now_s: f64) {
-        while let Some(r) = self.wrist_sub.try_recv() {
+        // Disengaged, a silent commander's lock may go (and, if configured, any lock:
+        // the next clutch press may come from another site).
+        if !self.ctrl.is_engaged() {
+            self.wrist_sub.release_if_silent(now_s);
+            self.input_sub.release_if_silent(now_s);
+            if self.commander.takeover == Takeover::OnNewEngagement {
+                self.wrist_sub.release();
+                self.input_sub.release();
+            }
+        }
+        if let Some(r) = self.wrist_sub.poll() {
             self.wrist = Some(WristSample {
                 received_s: r.receive_time_s(),
                 pose: isometry(&r.msg.pose),
             });
         }
-        while let Some(r) = self.input_sub.try_recv() {
+        if let Some(r) = self.input_sub.poll() {
             self.operator = Some(OperatorSample {
                 received_s: r.receive_time_s(),
                 clutch: r.msg.clutch,
@@ -153,10 +176,30 @@ impl Node for ArmNode {
             .operator_site_nodes
             .iter()
             .any(|n| self.watch.is_alive(n));
+        // Poses and pedals must come from one operator site (one Zenoh session).
+        let commander_conflict = match (self.wrist_sub.locked_info(), self.input_sub.locked_info())
+        {
+            (Some(w), Some(i)) => w.zid != i.zid,
+            _ => false,
+        };
+        let mut conflict = String::new();
+        for text in [
+            self.wrist_sub.conflict(now_s),
+            self.input_sub.conflict(now_s),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            conflict = text.to_owned();
+        }
+        if !conflict.is_empty() {
+            self.last_error = conflict;
+        }
         let inputs = ArmInputs {
             operator: self.operator,
             wrist: self.wrist,
             operator_site_alive: alive,
+            commander_conflict,
         };
         let command = match self.hw.read(now_s) {
             Ok(state) => {

@@ -11,9 +11,16 @@
 //!   value is refused; so is a target beyond a joint limit by more than
 //!   `target_limit_margin_rad` (within the margin it is clamped to the limit: inference
 //!   noise at a limit is normal). Refusals are counted by reason and change nothing.
-//! * **Hold.** The hand follows the targets only while the operator's enable switch
-//!   is held (fresh operator input, like the arm), the operator site is alive and the
-//!   newest target is younger than `command_timeout_s`. Otherwise it **holds**: it
+//! * **Gate.** The hand follows the targets only while the [`OperatorGate`] is open —
+//!   the same gate as the arm's: operator site alive, fresh operator input, a valid
+//!   motion scale, the enable switch held and, in the thesis's gating
+//!   (`gate = "clutch_and_enable"`, the default: ch. 7.3, the right pedal and the switch
+//!   enable both the arm and the hand), the clutch pedal pressed; with
+//!   `gate = "enable_only"` the switch alone — and the newest target is younger than
+//!   `command_timeout_s`. Each time the gate opens (a new engagement) the control law
+//!   restarts: the adaptive profiles go back to their initial values and the phase to
+//!   `s = 1`, as the adaptive law's time-indexed basis expects.
+//! * **Hold.** Otherwise the hand **holds**: it
 //!   keeps the last accepted target (the last safe posture; for a grasp it lies inside
 //!   the object) with the control law frozen and every effort capped at
 //!   `controller.hold_max_effort_nm`, so a held object stays held rather than dropped
@@ -32,10 +39,10 @@ use std::collections::BTreeMap;
 
 use nalgebra::SVector;
 use serde::{Deserialize, Serialize};
-use teleop_control::ConfigError;
 use teleop_control::hand::{
     HandControllerConfig, HandMode, HandOutput, JointInput, ShadowHandController,
 };
+use teleop_control::{Closed, ConfigError, GateMode, OperatorGate, OperatorSample};
 use teleop_hardware::wire::{self, WireError};
 use teleop_hardware::{HandCommand, HandState};
 use teleop_interfaces::joints::SHADOW_FINGER_JOINTS as FINGER_JOINTS;
@@ -61,6 +68,9 @@ pub struct HandSupervisorConfig {
     /// Targets older than this put the hand on hold, s. Default 0.2 (six periods of the
     /// 30 Hz inference stream).
     pub command_timeout_s: f64,
+    /// Which operator inputs open the hand: the thesis's clutch pedal and enable switch
+    /// (default), or the enable switch alone.
+    pub gate: GateMode,
     /// Operator input (enable switch) older than this puts the hand on hold, s.
     /// Default 0.2, as the arm's `input_deadline_s`.
     pub input_timeout_s: f64,
@@ -81,6 +91,7 @@ impl Default for HandSupervisorConfig {
         Self {
             rate_hz: 500.0,
             command_timeout_s: 0.2,
+            gate: GateMode::ClutchAndEnable,
             input_timeout_s: 0.2,
             target_limit_margin_rad: 0.1,
             gravity_compensation: true,
@@ -177,6 +188,10 @@ pub enum HoldReason {
     StaleOperatorInput,
     /// The enable switch is released.
     EnableReleased,
+    /// The clutch pedal is released (thesis gating).
+    ClutchReleased,
+    /// The motion scale in the operator input is invalid.
+    InvalidOperatorInput,
     /// None of the operator site's nodes is alive.
     OperatorSiteLost,
 }
@@ -189,17 +204,11 @@ impl HoldReason {
             HoldReason::StaleTarget => "stale_target",
             HoldReason::StaleOperatorInput => "stale_operator_input",
             HoldReason::EnableReleased => "enable_released",
+            HoldReason::ClutchReleased => "clutch_released",
+            HoldReason::InvalidOperatorInput => "invalid_operator_input",
             HoldReason::OperatorSiteLost => "operator_site_lost",
         }
     }
-}
-
-/// The operator's enable switch as last received.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct EnableSample {
-    /// Receive time, s (same clock as `now_s`).
-    pub received_s: f64,
-    pub enable: bool,
 }
 
 /// Result of one control period.
@@ -228,6 +237,7 @@ pub struct HandSupervisor {
     targets_rejected: BTreeMap<&'static str, u64>,
     holds: BTreeMap<&'static str, u64>,
     state_rejections: u64,
+    engagements: u64,
 }
 
 impl HandSupervisor {
@@ -262,6 +272,7 @@ impl HandSupervisor {
             targets_rejected: BTreeMap::new(),
             holds: BTreeMap::new(),
             state_rejections: 0,
+            engagements: 0,
         })
     }
 
@@ -325,14 +336,14 @@ impl HandSupervisor {
         Ok(q)
     }
 
-    /// One control period at `now_s` with the operator's enable switch, the operator
+    /// One control period at `now_s` with the operator's pedals and switch, the operator
     /// site's liveliness, the measured hand state and the measured arm posture (for
     /// gravity compensation: without it, none is applied and the period is counted as
     /// `hand.gravity_unknown`).
     pub fn step(
         &mut self,
         now_s: f64,
-        enable: Option<EnableSample>,
+        operator: Option<OperatorSample>,
         operator_site_alive: bool,
         state: &HandState,
         arm_position_rad: Option<&SVector<f64, 7>>,
@@ -344,13 +355,16 @@ impl HandSupervisor {
         };
         self.last_step_s = Some(now_s);
         self.steps += 1;
-        let hold = self.hold_reason(now_s, enable, operator_site_alive);
+        let hold = self.hold_reason(now_s, operator, operator_site_alive);
         if let Some(reason) = hold {
             if self.last_hold != Some(reason) {
                 tracing::info!(reason = reason.name(), "hand on hold");
             }
             *self.holds.entry(reason.name()).or_default() += 1;
         } else if self.last_hold.is_some() {
+            // A new engagement: the adaptive law starts over (profiles, phase s = 1).
+            self.controller.reset();
+            self.engagements += 1;
             tracing::info!("hand follows the operator's targets");
         }
         self.last_hold = hold;
@@ -390,19 +404,21 @@ impl HandSupervisor {
     fn hold_reason(
         &self,
         now_s: f64,
-        enable: Option<EnableSample>,
+        operator: Option<OperatorSample>,
         alive: bool,
     ) -> Option<HoldReason> {
-        if !alive {
-            return Some(HoldReason::OperatorSiteLost);
-        }
-        match enable {
-            Some(e) if now_s - e.received_s <= self.config.input_timeout_s => {
-                if !e.enable {
-                    return Some(HoldReason::EnableReleased);
-                }
-            }
-            _ => return Some(HoldReason::StaleOperatorInput),
+        let gate = OperatorGate {
+            input_timeout_s: self.config.input_timeout_s,
+            mode: self.config.gate,
+        };
+        if let Err(closed) = gate.check(now_s, operator.as_ref(), alive) {
+            return Some(match closed {
+                Closed::OperatorSiteLost => HoldReason::OperatorSiteLost,
+                Closed::StaleInput => HoldReason::StaleOperatorInput,
+                Closed::InvalidMotionScale => HoldReason::InvalidOperatorInput,
+                Closed::EnableReleased => HoldReason::EnableReleased,
+                Closed::ClutchReleased => HoldReason::ClutchReleased,
+            });
         }
         match self.target {
             None => Some(HoldReason::NoTarget),
@@ -447,6 +463,7 @@ impl HandSupervisor {
     pub fn named_counters(&self) -> Vec<(String, u64)> {
         let mut out = vec![
             ("hand.steps".to_owned(), self.steps),
+            ("hand.engagements".to_owned(), self.engagements),
             ("hand.targets_accepted".to_owned(), self.targets_accepted),
             ("hand.state_rejected".to_owned(), self.state_rejections),
             ("hand.gravity_unknown".to_owned(), self.gravity_unknown),

@@ -6,16 +6,18 @@ use std::time::Duration;
 
 use nalgebra::SVector;
 use serde::{Deserialize, Serialize};
-use teleop_bus::{Bus, BusConfig, NodeWatch, Subscriber};
+use teleop_bus::{Bus, BusConfig, NodeWatch};
+use teleop_control::OperatorSample;
 use teleop_hardware::{ArmHardware, HandCommand, HandHardware};
 use teleop_hardware_bus::{BusArm, BusHand};
 use teleop_interfaces::hardware::{PR2_ARM, SHADOW_HAND};
 use teleop_interfaces::{Site, nodes, topics};
 use teleop_msgs::{JointState, Lifecycle, OperatorInput};
-use teleop_node::{FinalReport, Node, NodeConfig};
+use teleop_node::source::{CommanderConfig, Takeover};
+use teleop_node::{FinalReport, Node, NodeConfig, SourceLock};
 
 use crate::arm_node::check_controller_links;
-use crate::hand_controller::{EnableSample, HandSupervisor, HandSupervisorConfig};
+use crate::hand_controller::{HandSupervisor, HandSupervisorConfig};
 
 /// Configuration of the `shadow_hand_controller` node.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -28,6 +30,8 @@ pub struct HandNodeConfig {
     pub operator_site_nodes: Vec<String>,
     /// The hand hardware's state counts as lost after this long, s.
     pub hardware_timeout_s: f64,
+    /// One commanding operator site at a time (finger targets and pedals).
+    pub commander: CommanderConfig,
     pub hand: HandSupervisorConfig,
     pub bus: BusConfig,
 }
@@ -41,6 +45,7 @@ impl Default for HandNodeConfig {
                 .map(String::from)
                 .collect(),
             hardware_timeout_s: 0.05,
+            commander: CommanderConfig::default(),
             hand: HandSupervisorConfig::default(),
             bus: BusConfig::default(),
         }
@@ -53,6 +58,7 @@ impl NodeConfig for HandNodeConfig {
     }
     fn validate(&self) -> Result<(), String> {
         check_controller_links(&self.operator_site_nodes, self.hardware_timeout_s)?;
+        self.commander.validate()?;
         self.hand.validate().map_err(|e| format!("hand.{e}"))
     }
 }
@@ -63,8 +69,9 @@ pub struct HandNode {
     operator_site_nodes: Vec<String>,
     gravity_compensation: bool,
     rate_hz: f64,
-    target_sub: Subscriber<JointState>,
-    input_sub: Subscriber<OperatorInput>,
+    commander: CommanderConfig,
+    target_sub: SourceLock<JointState>,
+    input_sub: SourceLock<OperatorInput>,
     watch: NodeWatch,
     hw: BusHand,
     arm: BusArm<7>,
@@ -72,7 +79,7 @@ pub struct HandNode {
     /// The hand's last measured posture (what it holds when the node stops).
     hand_position: Option<SVector<f64, 17>>,
     hand: HandSupervisor,
-    enable: Option<EnableSample>,
+    operator: Option<OperatorSample>,
     hardware_errors: u64,
     hardware_ok: bool,
     last_error: String,
@@ -92,8 +99,15 @@ impl HandNode {
             operator_site_nodes: cfg.operator_site_nodes.clone(),
             gravity_compensation: cfg.hand.gravity_compensation,
             rate_hz: cfg.hand.rate_hz,
-            target_sub: bus.subscriber(&topics::HAND_JOINT_TARGETS).await?,
-            input_sub: bus.subscriber(&topics::OPERATOR_INPUT).await?,
+            commander: cfg.commander,
+            target_sub: SourceLock::new(
+                bus.subscriber(&topics::HAND_JOINT_TARGETS).await?,
+                cfg.commander.release_after_s,
+            ),
+            input_sub: SourceLock::new(
+                bus.subscriber(&topics::OPERATOR_INPUT).await?,
+                cfg.commander.release_after_s,
+            ),
             watch: bus.watch_nodes().await?,
             hw: BusHand::new(bus, &SHADOW_HAND, cfg.hardware_timeout_s).await?,
             // The arm's posture orients the hand for gravity compensation (read-only).
@@ -101,7 +115,7 @@ impl HandNode {
             arm_position: None,
             hand_position: None,
             hand,
-            enable: None,
+            operator: None,
             hardware_errors: 0,
             hardware_ok: false,
             last_error: String::new(),
@@ -120,16 +134,36 @@ impl Node for HandNode {
     }
 
     fn tick(&mut self, now_s: f64) {
-        while let Some(r) = self.target_sub.try_recv() {
-            if let Err(e) = self.hand.accept_target(&r.msg, r.receive_time_s()) {
-                self.last_error = e.to_string();
+        // Holding, a silent commander's lock may go (and, if configured, any lock).
+        if self.hand.hold_reason_now().is_some() {
+            self.target_sub.release_if_silent(now_s);
+            self.input_sub.release_if_silent(now_s);
+            if self.commander.takeover == Takeover::OnNewEngagement {
+                self.target_sub.release();
+                self.input_sub.release();
             }
         }
-        while let Some(r) = self.input_sub.try_recv() {
-            self.enable = Some(EnableSample {
+        if let Some(r) = self.target_sub.poll()
+            && let Err(e) = self.hand.accept_target(&r.msg, r.receive_time_s())
+        {
+            self.last_error = e.to_string();
+        }
+        if let Some(r) = self.input_sub.poll() {
+            self.operator = Some(OperatorSample {
                 received_s: r.receive_time_s(),
+                clutch: r.msg.clutch,
                 enable: r.msg.enable,
+                motion_scale: r.msg.motion_scale,
             });
+        }
+        for conflict in [
+            self.target_sub.conflict(now_s),
+            self.input_sub.conflict(now_s),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            self.last_error = conflict.to_owned();
         }
         let alive = self
             .operator_site_nodes
@@ -148,7 +182,7 @@ impl Node for HandNode {
                 self.hand_position = Some(state.position_rad);
                 let out = self.hand.step(
                     now_s,
-                    self.enable,
+                    self.operator,
                     alive,
                     &state,
                     self.arm_position.as_ref(),

@@ -6,7 +6,8 @@ use nalgebra::{Isometry3, SVector, Translation3, UnitQuaternion, Vector3};
 use teleop_kinematics::robots;
 use teleop_remote_site::arm_controller::ArmState;
 use teleop_remote_site::arm_controller::{
-    ArmController, ArmControllerConfig, ArmInputs, OperatorSample, StopReason, WristSample,
+    ArmController, ArmControllerConfig, ArmInputs, OperatorSample, RelativeFrame, StopReason,
+    WristSample,
 };
 
 const DT: f64 = 1.0 / 30.0;
@@ -26,15 +27,17 @@ struct Rig {
     wrist: Isometry3<f64>,
     send_wrist: bool,
     last_wrist: Option<WristSample>,
+    conflict: bool,
+    dt: f64,
 }
 
 impl Rig {
     fn new() -> Self {
-        let ctrl = ArmController::new(
-            robots::pr2_arm_chain().unwrap(),
-            ArmControllerConfig::default(),
-        )
-        .unwrap();
+        Self::with(ArmControllerConfig::default())
+    }
+
+    fn with(config: ArmControllerConfig) -> Self {
+        let ctrl = ArmController::new(robots::pr2_arm_chain().unwrap(), config).unwrap();
         Self {
             ctrl,
             q: q_start(),
@@ -49,6 +52,8 @@ impl Rig {
             ),
             send_wrist: true,
             last_wrist: None,
+            conflict: false,
+            dt: DT,
         }
     }
 
@@ -58,7 +63,7 @@ impl Rig {
 
     /// One control period: inputs arrive, the controller steps, the ideal arm moves.
     fn step(&mut self) -> teleop_remote_site::arm_controller::ArmStep {
-        self.t += DT;
+        self.t += self.dt;
         if self.send_wrist {
             self.last_wrist = Some(WristSample {
                 received_s: self.t,
@@ -74,6 +79,7 @@ impl Rig {
             }),
             wrist: self.last_wrist,
             operator_site_alive: self.alive,
+            commander_conflict: self.conflict,
         };
         let state = ArmState {
             time_s: self.t,
@@ -81,7 +87,7 @@ impl Rig {
             velocity_rad_s: SVector::zeros(),
         };
         let out = self.ctrl.step(self.t, &inputs, &state);
-        self.q += out.command.velocity_rad_s * DT;
+        self.q += out.command.velocity_rad_s * self.dt;
         out
     }
 
@@ -107,8 +113,11 @@ fn arm_moves_only_with_clutch_and_enable() {
 }
 
 #[test]
-fn relative_motion_is_copied_scaled_in_the_robot_wrist_frame() {
-    let mut r = Rig::new();
+fn wrist_frame_mode_copies_the_motion_scaled_in_the_robot_wrist_frame() {
+    let mut r = Rig::with(ArmControllerConfig {
+        frame: RelativeFrame::Wrist,
+        ..ArmControllerConfig::default()
+    });
     r.clutch = true;
     r.scale = 1.0 / 3.0;
     r.step(); // engage
@@ -290,4 +299,114 @@ fn commands_respect_joint_velocity_limits_on_large_motions() {
             assert!(out.command.velocity_rad_s[i].abs() <= limits[i] + 1e-9);
         }
     }
+}
+
+/// Engages with the operator's hand turned 90 deg about z against the robot palm, moves
+/// the hand 6 cm along the tracker's x axis and turns it 15 deg about the tracker's z:
+/// base-aligned (default), the palm moves along the robot base's x and turns about the
+/// base's z, whatever the hand's orientation; in wrist mode the same motion goes
+/// elsewhere.
+#[test]
+fn base_aligned_mode_moves_along_the_base_axes_whatever_the_hand_orientation() {
+    let run = |frame: RelativeFrame| {
+        let mut r = Rig::with(ArmControllerConfig {
+            frame,
+            ..ArmControllerConfig::default()
+        });
+        // The palm's orientation at engage; the hand turned 90 deg against it.
+        let palm0 = r.palm();
+        r.wrist = Isometry3::from_parts(
+            Translation3::new(0.4, -0.2, 1.0),
+            palm0.rotation * UnitQuaternion::from_euler_angles(0.0, 0.0, 90f64.to_radians()),
+        );
+        r.clutch = true;
+        r.step();
+        let robot_ref = r.palm();
+        let human_ref = r.wrist;
+        for k in 1..=60 {
+            let f = f64::from(k) / 60.0;
+            r.wrist = Isometry3::from_parts(
+                Translation3::from(human_ref.translation.vector + Vector3::new(0.06 * f, 0.0, 0.0)),
+                UnitQuaternion::from_euler_angles(0.0, 0.0, 15f64.to_radians() * f)
+                    * human_ref.rotation,
+            );
+            r.step();
+        }
+        for _ in 0..90 {
+            r.step();
+        }
+        (robot_ref, r.palm())
+    };
+    let (robot_ref, got) = run(RelativeFrame::BaseAligned);
+    let moved = got.translation.vector - robot_ref.translation.vector;
+    assert!(
+        (moved - Vector3::new(0.06, 0.0, 0.0)).norm() < 0.002,
+        "base-aligned palm moved {moved:?}"
+    );
+    let turned = got.rotation * robot_ref.rotation.inverse();
+    let expected = UnitQuaternion::from_euler_angles(0.0, 0.0, 15f64.to_radians());
+    assert!(
+        (turned * expected.inverse()).angle().to_degrees() < 0.5,
+        "turned {turned:?}"
+    );
+    // The same hand motion in wrist mode is taken in the hand's frame and applied in
+    // the palm's: the palm moves along R_palm R_hand^T dp, here the base x turned by
+    // -90 deg about the palm's z — 6 cm away from where base-aligned goes.
+    let (robot_ref, got) = run(RelativeFrame::Wrist);
+    let moved = got.translation.vector - robot_ref.translation.vector;
+    let hand_ref =
+        robot_ref.rotation * UnitQuaternion::from_euler_angles(0.0, 0.0, 90f64.to_radians());
+    let expected = robot_ref.rotation * (hand_ref.inverse() * Vector3::new(0.06, 0.0, 0.0));
+    assert!(
+        (moved - expected).norm() < 0.002,
+        "wrist mode moved {moved:?}, expected {expected:?}"
+    );
+    assert!((moved - Vector3::new(0.06, 0.0, 0.0)).norm() > 0.05);
+}
+
+/// A skipped tick (twice the period) is measured: the commanded speed stays that of
+/// the operator's motion, not twice it.
+#[test]
+fn a_skipped_tick_is_measured_not_assumed() {
+    let mut regular = Rig::new();
+    let mut skipping = Rig::new();
+    for r in [&mut regular, &mut skipping] {
+        r.clutch = true;
+        r.step();
+    }
+    // The operator moves at 3 cm/s along x; the second rig ticks at 15 Hz.
+    skipping.dt = 2.0 * DT;
+    for k in 0..30 {
+        regular.wrist.translation.vector.x += 0.03 * DT;
+        regular.step();
+        if k % 2 == 1 {
+            skipping.wrist.translation.vector.x += 0.03 * 2.0 * DT;
+            skipping.step();
+        }
+    }
+    let (a, b) = (regular.palm(), skipping.palm());
+    // Both follow the 3 cm the operator moved (the slower loop lags a little more);
+    // assuming the nominal period instead would double the skipping rig's speed.
+    assert!(
+        (a.translation.vector - b.translation.vector).norm() < 0.006,
+        "{:?} vs {:?}",
+        a.translation,
+        b.translation
+    );
+}
+
+/// Poses and pedals from different operator sites: no engagement, named.
+#[test]
+fn a_commander_conflict_blocks_engagement_but_not_an_engaged_arm() {
+    let mut r = Rig::new();
+    r.conflict = true;
+    r.clutch = true;
+    assert_eq!(r.step().stopped, Some(StopReason::CommanderConflict));
+    assert!(!r.ctrl.is_engaged());
+    r.conflict = false;
+    r.step();
+    assert!(r.ctrl.is_engaged());
+    r.conflict = true;
+    r.wrist.translation.vector.x += 0.01;
+    assert_eq!(r.step().stopped, None);
 }

@@ -4,12 +4,13 @@
 #![allow(clippy::unwrap_used)]
 
 use nalgebra::SVector;
+use teleop_control::OperatorSample;
 use teleop_hardware::HandCommand;
 use teleop_interfaces::joints::SHADOW_FINGER_JOINTS as FINGER_JOINTS;
 use teleop_interfaces::joints::finger_joint_index;
 use teleop_msgs::JointState;
 use teleop_remote_site::hand_controller::{
-    EnableSample, HandSupervisor, HandSupervisorConfig, HoldReason, TargetRejection,
+    HandSupervisor, HandSupervisorConfig, HoldReason, TargetRejection,
 };
 use teleop_sim::{CupGraspConfig, World, WorldConfig};
 
@@ -28,10 +29,12 @@ fn target_msg(q: &SVector<f64, 17>) -> JointState {
     }
 }
 
-fn enabled(t: f64) -> Option<EnableSample> {
-    Some(EnableSample {
+fn enabled(t: f64) -> Option<OperatorSample> {
+    Some(OperatorSample {
         received_s: t,
+        clutch: true,
         enable: true,
+        motion_scale: 1.0,
     })
 }
 
@@ -42,7 +45,7 @@ fn run(
     s: &mut HandSupervisor,
     seconds: f64,
     target: Option<&SVector<f64, 17>>,
-    enable: &dyn Fn(f64) -> Option<EnableSample>,
+    enable: &dyn Fn(f64) -> Option<OperatorSample>,
     alive: bool,
 ) -> Vec<(HandCommand, Option<HoldReason>)> {
     let mut out = Vec::new();
@@ -87,9 +90,11 @@ fn the_hand_starts_still_and_follows_only_with_targets_and_enable() {
     target[finger_joint_index("rh_FFJ3").unwrap()] = 0.8;
     target[finger_joint_index("rh_MFJ3").unwrap()] = 0.6;
     let released = |t| {
-        Some(EnableSample {
+        Some(OperatorSample {
             received_s: t,
+            clutch: true,
             enable: false,
+            motion_scale: 1.0,
         })
     };
     let before = w.hand_position_rad();
@@ -127,9 +132,11 @@ fn every_watchdog_path_holds_the_last_target_within_one_period() {
         // The fault starts now; targets keep flowing except for the stale-target case.
         let fresh = (reason != HoldReason::StaleTarget).then_some(&target);
         let enable = move |t: f64| match reason {
-            HoldReason::EnableReleased => Some(EnableSample {
+            HoldReason::EnableReleased => Some(OperatorSample {
                 received_s: t,
+                clutch: true,
                 enable: false,
+                motion_scale: 1.0,
             }),
             HoldReason::StaleOperatorInput => enabled(t_fault),
             _ => enabled(t),
@@ -282,4 +289,66 @@ fn a_non_finite_state_resends_the_previous_command_and_a_lost_hand_gets_a_positi
         Some(HandCommand::Position(q)) => assert_eq!(q, target),
         other => panic!("{other:?}"),
     }
+}
+
+/// The thesis's gating (default): the clutch pedal opens the hand as it opens the arm;
+/// with `gate = "enable_only"` the switch alone does. Each opening restarts the adaptive
+/// law's phase.
+#[test]
+fn the_clutch_gates_the_hand_as_configured_and_engagement_restarts_the_phase() {
+    use teleop_control::GateMode;
+    let mut target = SVector::<f64, 17>::zeros();
+    target[finger_joint_index("rh_FFJ3").unwrap()] = 0.8;
+    let no_clutch = |t: f64| {
+        Some(OperatorSample {
+            received_s: t,
+            clutch: false,
+            enable: true,
+            motion_scale: 1.0,
+        })
+    };
+    // Default gate: clutch released holds.
+    let mut w = World::new(WorldConfig::default()).unwrap();
+    let mut s = supervisor();
+    let out = run(&mut w, &mut s, 0.5, Some(&target), &no_clutch, true);
+    assert!(
+        out.iter()
+            .all(|(_, h)| *h == Some(HoldReason::ClutchReleased))
+    );
+    // Enable only: the same inputs open the hand.
+    let (lo, hi) = HandSupervisor::shadow_hand_limits().unwrap();
+    let mut s = HandSupervisor::new(
+        HandSupervisorConfig {
+            gate: GateMode::EnableOnly,
+            ..HandSupervisorConfig::default()
+        },
+        lo,
+        hi,
+    )
+    .unwrap();
+    let mut w = World::new(WorldConfig::default()).unwrap();
+    let out = run(&mut w, &mut s, 1.0, Some(&target), &no_clutch, true);
+    assert_eq!(out.last().unwrap().1, None);
+    // The phase ran while following; a new engagement restarts it at s = 1.
+    let phase = s.controller().adaptive().phase();
+    assert!(phase < 0.5, "phase {phase}");
+    let released = |t: f64| {
+        Some(OperatorSample {
+            received_s: t,
+            clutch: false,
+            enable: false,
+            motion_scale: 1.0,
+        })
+    };
+    run(&mut w, &mut s, 0.1, Some(&target), &released, true);
+    run(&mut w, &mut s, DT, Some(&target), &no_clutch, true);
+    let phase = s.controller().adaptive().phase();
+    assert!(phase > 0.99, "phase after re-engaging {phase}");
+    let counters = s.named_counters();
+    let engagements = counters
+        .iter()
+        .find(|(n, _)| n == "hand.engagements")
+        .unwrap()
+        .1;
+    assert_eq!(engagements, 2);
 }

@@ -1,22 +1,29 @@
-//! The hand controller in closed loop with the simulated hand, in process and at the
-//! controller's rate: the scenarios behind the thesis's ch. 8 figures (touching task,
-//! cup grasp, a load pushing a grasped finger). Tests assert on them
-//! (`tests/scenario_touching.rs`, `tests/scenario_grasp.rs`); the example
-//! `hand_scenarios` writes their traces and plots to `docs/`.
+//! The hand in closed loop with the simulated hand, in process: the scenarios behind
+//! the thesis's ch. 8 figures (touching task, cup grasp, a load pushing a grasped
+//! finger). Tests assert on them (`tests/scenario_touching.rs`,
+//! `tests/scenario_grasp.rs`); the example `hand_scenarios` writes their traces and
+//! plots to `docs/`.
 //!
-//! Each run builds its own [`World`] and [`ShadowHandController`], so runs are
-//! independent and deterministic.
+//! The code path is the shipped one: the `shadow_hand_controller` node's
+//! [`HandSupervisor`] (gate, target checks, gravity model, control law) at its
+//! configured rate, commanding the simulated hand through the hardware safety layer
+//! ([`SafeHand`]) that `remote_sim` wraps it in; the operator holds the clutch and the
+//! enable switch and the hand inference sends targets at 30 Hz. The simulated hand's
+//! physical parameters are perturbed from the nominal model the supervisor uses
+//! (`teleop_sim::PerturbationConfig`), and its sensors are noisy.
+//!
+//! Each run builds its own world and supervisor, so runs are independent and
+//! deterministic.
 
 use nalgebra::{Point3, SVector};
 use teleop_control::ConfigError;
-use teleop_control::Rejection;
-use teleop_control::hand::{HandControllerConfig, JointInput, ShadowHandController};
-use teleop_interfaces::joints::{
-    FINGERTIPS, FLEXION_JOINTS, SHADOW_FINGER_JOINTS as FINGER_JOINTS,
-};
-use teleop_remote_site::gravity::HandGravity;
-use teleop_remote_site::hand_controller::hand_command;
-use teleop_sim::{CupGraspConfig, SimError, TouchingTaskConfig, World};
+use teleop_control::OperatorSample;
+use teleop_control::hand::HandControllerConfig;
+use teleop_hardware::safety::{HandLimits, HandSafety, HandSafetyConfig, SafetyConfigError};
+use teleop_hardware::{HandHardware, HardwareError, SafeHand, wire};
+use teleop_interfaces::joints::{FINGERTIPS, FLEXION_JOINTS};
+use teleop_remote_site::hand_controller::{HandSupervisor, HandSupervisorConfig, SupervisorError};
+use teleop_sim::{CupGraspConfig, SharedWorld, SimError, SimHand, TouchingTaskConfig, World};
 
 /// Why a scenario could not run.
 #[derive(Debug, thiserror::Error)]
@@ -26,12 +33,18 @@ pub enum ScenarioError {
     Sim(#[from] SimError),
     #[error("hand controller config: {0}")]
     Controller(#[from] ConfigError),
-    #[error("hand controller refused a step: {0}")]
-    Rejected(#[from] Rejection),
+    #[error("hand supervisor: {0}")]
+    Supervisor(#[from] SupervisorError),
+    #[error("hardware safety layer: {0}")]
+    Safety(#[from] SafetyConfigError),
+    #[error("simulated hardware: {0}")]
+    Hardware(#[from] HardwareError),
+    #[error("target refused: {0}")]
+    Target(String),
     #[error("unknown finger joint {0:?}")]
     UnknownJoint(String),
-    #[error("robot model: {0}")]
-    Model(#[from] teleop_kinematics::KinematicsError),
+    #[error("simulated world lock poisoned")]
+    Poisoned,
 }
 
 /// Index of a finger joint in [`FINGER_JOINTS`] order.
@@ -39,32 +52,114 @@ pub enum ScenarioError {
 /// # Errors
 /// [`ScenarioError::UnknownJoint`].
 pub fn finger_joint_index(name: &str) -> Result<usize, ScenarioError> {
-    FINGER_JOINTS
-        .iter()
-        .position(|j| *j == name)
+    teleop_interfaces::joints::finger_joint_index(name)
         .ok_or_else(|| ScenarioError::UnknownJoint(name.to_owned()))
 }
 
-/// One control period: read the simulated hand, step the controller toward `target`
-/// with gravity compensation (as the `shadow_hand_controller` node does), command,
-/// advance the world by `dt_s`.
-///
-/// # Errors
-/// [`ScenarioError::Rejected`] if the controller refuses the input.
-pub fn control_step(
-    world: &mut World,
-    controller: &mut ShadowHandController,
-    gravity: &mut HandGravity,
-    target_rad: &SVector<f64, 17>,
+/// Period of the hand inference's targets, s (30 Hz).
+pub const TARGET_PERIOD_S: f64 = 1.0 / 30.0;
+
+/// The hand as the node and `remote_sim` drive it: the supervisor with the node's
+/// configuration (`controller` replaced), the simulated hand behind its safety layer.
+pub struct HandLoop {
+    world: SharedWorld,
+    hand: SafeHand<SimHand>,
+    supervisor: HandSupervisor,
+    target: SVector<f64, 17>,
+    next_target_s: f64,
     dt_s: f64,
-) -> Result<(), ScenarioError> {
-    let s = world.hand_state();
-    let g = gravity.compensation_nm(&world.arm_position_rad(), &s.position_rad);
-    let input = JointInput::new(s.position_rad, s.velocity_rad_s, *target_rad).with_gravity(g);
-    let out = controller.step_input(dt_s, &input)?;
-    world.command_hand(&hand_command(out));
-    world.step(dt_s);
-    Ok(())
+}
+
+impl std::fmt::Debug for HandLoop {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("HandLoop")
+            .field("dt_s", &self.dt_s)
+            .finish()
+    }
+}
+
+impl HandLoop {
+    /// The loop on `world` with the control law `controller`, aiming at `target`.
+    ///
+    /// # Errors
+    /// Supervisor or safety configuration errors.
+    pub fn new(
+        world: World,
+        controller: &HandControllerConfig<17>,
+        target: SVector<f64, 17>,
+    ) -> Result<Self, ScenarioError> {
+        let config = HandSupervisorConfig {
+            controller: *controller,
+            ..HandSupervisorConfig::default()
+        };
+        let (lower, upper) = HandSupervisor::shadow_hand_limits()
+            .map_err(|e| ScenarioError::Supervisor(SupervisorError::Model(e)))?;
+        let supervisor = HandSupervisor::new(config, lower, upper)?;
+        let (world, _arm, sim_hand) = teleop_sim::share(world);
+        let safety = HandSafety::new(HandLimits::shadow()?, HandSafetyConfig::default())?;
+        Ok(Self {
+            world,
+            hand: SafeHand::new(sim_hand, safety),
+            supervisor,
+            target,
+            next_target_s: 0.0,
+            dt_s: 1.0 / config.rate_hz,
+        })
+    }
+
+    /// The world (ground truth), locked.
+    ///
+    /// # Errors
+    /// [`ScenarioError::Poisoned`].
+    pub fn world(&self) -> Result<std::sync::MutexGuard<'_, World>, ScenarioError> {
+        self.world.lock().map_err(|_| ScenarioError::Poisoned)
+    }
+
+    /// The supervisor (profiles, counters).
+    pub fn supervisor(&self) -> &HandSupervisor {
+        &self.supervisor
+    }
+
+    /// The safety layer (its counters).
+    pub fn safety(&self) -> &HandSafety {
+        self.hand.safety()
+    }
+
+    /// The control period, s.
+    pub fn dt_s(&self) -> f64 {
+        self.dt_s
+    }
+
+    /// One control period: targets (every [`TARGET_PERIOD_S`]), pedals and switch
+    /// held, the measured hand and arm, the supervisor's step, the command through the
+    /// safety layer, the world advanced by one period.
+    ///
+    /// # Errors
+    /// A refused target, the simulated hardware's errors, a poisoned lock.
+    pub fn step(&mut self) -> Result<(), ScenarioError> {
+        let now = self.world()?.time_s();
+        if now >= self.next_target_s - 1e-9 {
+            let msg = wire::finger_targets_msg(&self.target, now);
+            self.supervisor
+                .accept_target(&msg, now)
+                .map_err(|e| ScenarioError::Target(e.to_string()))?;
+            self.next_target_s += TARGET_PERIOD_S;
+        }
+        let operator = OperatorSample {
+            received_s: now,
+            clutch: true,
+            enable: true,
+            motion_scale: 1.0,
+        };
+        let state = self.hand.read(now)?;
+        let arm = self.world()?.arm_state().position_rad;
+        let out = self
+            .supervisor
+            .step(now, Some(operator), true, &state, Some(&arm));
+        self.hand.write(now, &out.command)?;
+        self.world()?.step(self.dt_s);
+        Ok(())
+    }
 }
 
 /// Settings of the touching task runs.
@@ -77,8 +172,6 @@ pub struct TouchingRun {
     /// Trial `k` of `n` perturbs the commanded FFJ3 by `(k - (n-1)/2) * perturbation`,
     /// rad (FFJ2 by half of it, opposite). Default 0.01.
     pub perturbation_rad: f64,
-    /// Control period, s. Default 0.001 (1 kHz, the Shadow hand's control loop).
-    pub dt_s: f64,
     /// Length of a trial, s. Default 2.
     pub duration_s: f64,
     /// Contact forces before this time are not counted (the approach), s. Default 0.2.
@@ -91,7 +184,6 @@ impl Default for TouchingRun {
             task: TouchingTaskConfig::default(),
             overshoot_rad: 0.15,
             perturbation_rad: 0.01,
-            dt_s: 0.001,
             duration_s: 2.0,
             settle_s: 0.2,
         }
@@ -120,9 +212,7 @@ pub fn touching_trial(
     k: usize,
     trials: usize,
 ) -> Result<TouchTrial, ScenarioError> {
-    let mut world = World::touching_task(&run.task)?;
-    let mut ctrl = ShadowHandController::new(*controller)?;
-    let mut gravity = HandGravity::new(run.task.world.gravity_m_s2.into())?;
+    let world = World::touching_task(&run.task)?;
     // `World::touching_task` has refused an unknown finger already.
     let finger = FINGERTIPS
         .iter()
@@ -137,10 +227,12 @@ pub fn touching_trial(
     target[j3] += run.overshoot_rad + p;
     target[j2] += run.overshoot_rad * 2.0 / 3.0 - p / 2.0;
 
+    let mut hand = HandLoop::new(world, controller, target)?;
     let (mut max, mut sum, mut n) = (0.0_f64, 0.0, 0u32);
     let (mut point_sum, mut points) = (nalgebra::Vector3::zeros(), 0u32);
-    while world.time_s() < run.duration_s - 1e-9 {
-        control_step(&mut world, &mut ctrl, &mut gravity, &target, run.dt_s)?;
+    while hand.world()?.time_s() < run.duration_s - 1e-9 {
+        hand.step()?;
+        let world = hand.world()?;
         if world.time_s() >= run.settle_s {
             let f = world.fingertip_force_n()[finger];
             max = max.max(f);
@@ -227,11 +319,10 @@ pub struct GraspRun {
     /// The joint whose position and effort are traced (the loaded one). Default
     /// `"rh_THJ4"`, the screw-pouring load's joint.
     pub traced_joint: String,
-    /// Control period, s. Default 0.001.
-    pub dt_s: f64,
     /// Length of the run, s. Default 9.
     pub duration_s: f64,
-    /// A sample every this many control periods. Default 10.
+    /// A sample every this many control periods. Default 5 (10 ms at the node's
+    /// 500 Hz).
     pub sample_every: usize,
 }
 
@@ -240,9 +331,8 @@ impl Default for GraspRun {
         Self {
             cup: CupGraspConfig::default(),
             traced_joint: "rh_THJ4".to_owned(),
-            dt_s: 0.001,
             duration_s: 9.0,
-            sample_every: 10,
+            sample_every: 5,
         }
     }
 }
@@ -270,16 +360,16 @@ pub fn grasp_run(
     run: &GraspRun,
     controller: &HandControllerConfig<17>,
 ) -> Result<Vec<GraspSample>, ScenarioError> {
-    let mut world = World::cup_grasp(&run.cup)?;
-    let mut ctrl = ShadowHandController::new(*controller)?;
-    let mut gravity = HandGravity::new(run.cup.world.gravity_m_s2.into())?;
+    let world = World::cup_grasp(&run.cup)?;
     let j = finger_joint_index(&run.traced_joint)?;
     let target = SVector::<f64, 17>::from(run.cup.closed_posture_rad);
+    let mut hand = HandLoop::new(world, controller, target)?;
     let mut samples = Vec::new();
     let mut step = 0usize;
-    while world.time_s() < run.duration_s - 1e-9 {
-        control_step(&mut world, &mut ctrl, &mut gravity, &target, run.dt_s)?;
+    while hand.world()?.time_s() < run.duration_s - 1e-9 {
+        hand.step()?;
         step += 1;
+        let world = hand.world()?;
         if step.is_multiple_of(run.sample_every.max(1)) {
             let s = world.hand_state();
             samples.push(GraspSample {

@@ -332,3 +332,31 @@ async fn source_policy_and_lock_refuse_other_publishers() {
     let got = any.recv_timeout(Duration::from_secs(2)).await.unwrap();
     assert_eq!(got.msg.position[0], 9.0);
 }
+
+/// A node that joins later (through the listening session, as a second operator station
+/// would) is known by name to the others' directories.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_late_publisher_is_announced_to_the_directory() {
+    let (a_cfg, mut b_cfg) = pair_config(18);
+    // Listening lets the connecting sessions reach each other once gossip tells them.
+    b_cfg.zenoh.listen = vec!["tcp/127.0.0.1:0".into()];
+    let a = Bus::open("node_a", &a_cfg).await.unwrap();
+    let b = Bus::open("node_b", &b_cfg).await.unwrap();
+    let sub = b.subscriber(&topics::SHADOW_JOINT_STATES).await.unwrap();
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let c = Bus::open("late_node_c", &b_cfg).await.unwrap();
+    let publisher = c.publisher(&topics::SHADOW_JOINT_STATES).await.unwrap();
+    wait_connected(&publisher, &sub).await;
+    publisher.put(&joint_state(3)).unwrap();
+    let got = sub.recv_timeout(Duration::from_secs(2)).await.unwrap();
+    let mut info = sub.publisher_info(&got.publisher_gid);
+    for _ in 0..20 {
+        if info.is_some() {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+        info = sub.publisher_info(&got.publisher_gid);
+    }
+    assert_eq!(info.expect("announced").node_name, "late_node_c");
+    drop(a);
+}

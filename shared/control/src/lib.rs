@@ -3,6 +3,7 @@
 
 pub mod error;
 pub mod filters;
+pub mod gate;
 pub mod hand;
 
 pub use error::{Axis, ConfigError, Rejection, RejectionCounts, RejectionKind};
@@ -11,6 +12,7 @@ pub use filters::{
     JointVelocityLimiter, JumpFilter, JumpFilterConfig, UR5_MAX_JOINT_VELOCITY_RAD_S,
     VelocityLimitStrategy, Watchdog, WatchdogConfig, WatchdogEvent, WatchdogState,
 };
+pub use gate::{Closed, GateMode, OperatorGate, OperatorSample};
 pub use hand::{
     AdaptiveImpedance, CompliantProfiles, HandController, HandControllerConfig, HandMode,
     HandOutput, JointInput, PerJoint, ShadowHandController,

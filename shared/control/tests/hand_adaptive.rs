@@ -356,9 +356,18 @@ fn a_lasting_contact_creeps_up_as_printed_and_forgetting_bounds_it() {
 
     let mut forgetting = printed;
     forgetting.adaptive.forgetting_rate_per_s = PerJoint::Uniform(2.0);
+    forgetting.adaptive.forgetting_error_scale_s2_rad2 = PerJoint::Uniform(0.0);
     let (early_f, late_f) = long_press(forgetting);
     println!(
         "press 20 s, forgetting 2/s: mean contact {early_f:.3} N m at 0.5-1.5 s, {late_f:.3} N m at 19-20 s"
     );
     assert!(late_f < 0.6 * late);
+    // The default forgetting fades with the sliding error (beta = 4 s^2/rad^2), so
+    // that it does not weaken learning against slip: a press held far behind the
+    // surface (a large, lasting error) creeps up almost as printed.
+    let (early_d, late_d) = long_press(HandControllerConfig::<1>::default());
+    println!(
+        "press 20 s, default (1/s, beta 4): mean contact {early_d:.3} N m at 0.5-1.5 s, {late_d:.3} N m at 19-20 s"
+    );
+    assert!(late_d > late_f && late_d <= late + 1e-9);
 }

@@ -36,10 +36,14 @@ pub struct NodeSpec {
     pub role: &'static str,
     /// Whether it commands hardware (then its shutdown commands a stop).
     pub commands_hardware: bool,
+    /// Whether it owns hardware (a driver, or the simulator standing in for one): it
+    /// starts first and stops last, so the controllers' stop commands still reach it.
+    pub owns_hardware: bool,
 }
 
 /// Every node, in start order (hardware first, then controllers, then the operator
-/// site, so each finds what it needs).
+/// site, so each finds what it needs). They stop in the same order with the hardware
+/// owners last ([`stop_order`]).
 pub const NODES: &[NodeSpec] = &[
     NodeSpec {
         name: "remote_sim",
@@ -47,7 +51,8 @@ pub const NODES: &[NodeSpec] = &[
         machine: "robot",
         config: "deploy/config/remote_sim.toml",
         role: "simulated PR2 arm, Shadow hand, objects and camera views, behind the hardware safety layer",
-        commands_hardware: true,
+        owns_hardware: true,
+        commands_hardware: false,
     },
     NodeSpec {
         name: "pr2_arm_controller",
@@ -55,6 +60,7 @@ pub const NODES: &[NodeSpec] = &[
         machine: "PC2",
         config: "deploy/config/pr2_arm_controller.toml",
         role: "PR2 arm relative control (clutch, IK, eq. 6.1 velocity law, watchdog)",
+        owns_hardware: false,
         commands_hardware: true,
     },
     NodeSpec {
@@ -63,6 +69,7 @@ pub const NODES: &[NodeSpec] = &[
         machine: "PC2",
         config: "deploy/config/shadow_hand_controller.toml",
         role: "Shadow hand control (position / fixed / adaptive impedance, hold watchdog)",
+        owns_hardware: false,
         commands_hardware: true,
     },
     NodeSpec {
@@ -71,6 +78,7 @@ pub const NODES: &[NodeSpec] = &[
         machine: "PC2",
         config: "deploy/config/feedback_publisher.toml",
         role: "joint states, fingertip pressures and camera views to the operator site",
+        owns_hardware: false,
         commands_hardware: false,
     },
     NodeSpec {
@@ -79,6 +87,7 @@ pub const NODES: &[NodeSpec] = &[
         machine: "PC1",
         config: "deploy/config/wrist_tracker.toml",
         role: "operator wrist pose and pedals (simulated operator today)",
+        owns_hardware: false,
         commands_hardware: false,
     },
 ];
@@ -87,6 +96,15 @@ pub const NODES: &[NodeSpec] = &[
 /// ([`HAND_JOINT_TARGETS`](crate::topics::HAND_JOINT_TARGETS)); it joins [`NODES`] with
 /// the hand-inference stage.
 pub const HAND_INFERENCE: &str = "hand_inference";
+
+/// The order to stop the nodes in: the controllers first (their shutdown commands the
+/// robots to stop), then the operator site, the hardware owners last.
+pub fn stop_order() -> impl Iterator<Item = &'static NodeSpec> {
+    NODES
+        .iter()
+        .filter(|n| !n.owns_hardware)
+        .chain(NODES.iter().filter(|n| n.owns_hardware))
+}
 
 /// The node named `name`.
 pub fn find(name: &str) -> Option<&'static NodeSpec> {
@@ -127,5 +145,9 @@ mod tests {
         }
         assert_eq!(find("remote_sim").map(|n| n.site), Some(Site::Remote));
         assert_eq!(of_site(Site::Local).collect::<Vec<_>>(), ["wrist_tracker"]);
+        let stop: Vec<&str> = stop_order().map(|n| n.name).collect();
+        assert_eq!(stop.len(), NODES.len());
+        assert_eq!(stop.last(), Some(&"remote_sim"));
+        assert_eq!(stop.first(), Some(&"pr2_arm_controller"));
     }
 }

@@ -8,12 +8,14 @@
 pub mod args;
 pub mod config;
 pub mod runner;
+pub mod source;
 pub mod status;
 pub mod stop;
 
 pub use args::{NodeArgs, ZenohArgs};
 pub use config::{ConfigError, NodeConfig};
 pub use runner::{FinalReport, Node, Periodic, run};
+pub use source::SourceLock;
 pub use status::StatusReporter;
 pub use stop::stop_signal;
 pub use teleop_bus::clock::{self, Clock, ManualClock, SystemClock};

@@ -31,7 +31,7 @@ pub struct ArmJointLimits {
 #[derive(Debug, Clone)]
 pub struct ArmSim {
     limits: [ArmJointLimits; 7],
-    lag_s: f64,
+    lag_s: [f64; 7],
     timeout_s: f64,
     position_rad: SVector<f64, 7>,
     velocity_rad_s: SVector<f64, 7>,
@@ -48,13 +48,20 @@ impl ArmSim {
         });
         Self {
             limits,
-            lag_s: config.velocity_lag_s,
+            lag_s: [config.velocity_lag_s; 7],
             timeout_s: config.command_timeout_s,
             position_rad,
             velocity_rad_s: SVector::zeros(),
             command_rad_s: SVector::zeros(),
             command_time_s: None,
         }
+    }
+
+    /// Per-joint velocity lags (the simulated robot's own, perturbed), s.
+    #[must_use]
+    pub fn with_lags(mut self, lag_s: [f64; 7]) -> Self {
+        self.lag_s = lag_s;
+        self
     }
 
     /// Stores a velocity command received at sim time `time_s`.
@@ -72,12 +79,12 @@ impl ArmSim {
     /// Advances by `dt_s`; `time_s` is the sim time at the start of the step.
     pub fn step(&mut self, time_s: f64, dt_s: f64) {
         let active = self.command_active(time_s);
-        let blend = if self.lag_s > 0.0 {
-            1.0 - (-dt_s / self.lag_s).exp()
-        } else {
-            1.0
-        };
         for i in 0..7 {
+            let blend = if self.lag_s[i] > 0.0 {
+                1.0 - (-dt_s / self.lag_s[i]).exp()
+            } else {
+                1.0
+            };
             let lim = &self.limits[i];
             let v = self.velocity_rad_s[i];
             let max_dv = lim.acceleration_rad_s2 * dt_s;

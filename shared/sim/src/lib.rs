@@ -110,9 +110,11 @@ mod world;
 
 pub use arm::{ArmJointLimits, ArmSim};
 pub use camera::{CameraError, CameraViewsConfig, SceneCameras, View};
-pub use config::{ArmSimConfig, ContactConfig, HandSimConfig, NoiseConfig, WorldConfig};
+pub use config::{
+    ArmSimConfig, ContactConfig, HandSimConfig, NoiseConfig, PerturbationConfig, WorldConfig,
+};
 pub use error::SimError;
 pub use hardware::{SharedWorld, SimArm, SimHand, share};
 pub use objects::{ExternalLoad, LoadTarget, Object, ObjectShape};
 pub use scenarios::{CupGraspConfig, TouchingTaskConfig, WORKING_POSTURE_RAD};
-pub use world::{ContactInfo, World};
+pub use world::{ContactInfo, Perturbation, World};

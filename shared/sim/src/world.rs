@@ -59,6 +59,70 @@ struct ActiveLoad {
     target: ResolvedTarget,
 }
 
+/// The factors drawn for one simulated robot ([`crate::PerturbationConfig`]): what
+/// its physical parameters are, relative to the nominal model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Perturbation {
+    /// Mass (and inertia) factor of each link moved by a finger joint, by link name.
+    pub link_mass_scale: Vec<(String, f64)>,
+    /// Per finger joint ([`FINGER_JOINTS`] order).
+    pub damping_scale: SVector<f64, 17>,
+    pub armature_scale: SVector<f64, 17>,
+    pub motor_gain_scale: SVector<f64, 17>,
+    /// Contact friction coefficient factor.
+    pub friction_scale: f64,
+    /// Per arm joint ([`ARM_JOINTS`] order).
+    pub arm_lag_scale: [f64; 7],
+}
+
+impl Perturbation {
+    fn draw(config: &WorldConfig, robot: &Robot, dof_hand: &[Option<usize>]) -> Self {
+        let p = &config.perturbation;
+        let mut rng = ChaCha8Rng::seed_from_u64(p.seed);
+        let mut factor = |f: f64| -> f64 {
+            if f > 0.0 {
+                1.0 + f * (2.0 * rng.random::<f64>() - 1.0)
+            } else {
+                1.0
+            }
+        };
+        let mut link_mass_scale = Vec::new();
+        for link in robot.links() {
+            let Ok(id) = robot.link_id(&link.name) else {
+                continue;
+            };
+            let moved = robot
+                .dofs_moving(id)
+                .iter()
+                .any(|&d| dof_hand.get(d).copied().flatten().is_some());
+            if moved && link.inertial.is_some() {
+                link_mass_scale.push((link.name.clone(), factor(p.mass_fraction)));
+            }
+        }
+        let damping_scale = SVector::from_fn(|_, _| factor(p.damping_fraction));
+        let armature_scale = SVector::from_fn(|_, _| factor(p.armature_fraction));
+        let motor_gain_scale = SVector::from_fn(|_, _| factor(p.motor_gain_fraction));
+        let friction_scale = factor(p.friction_fraction);
+        let arm_lag_scale = [(); 7].map(|()| factor(p.arm_lag_fraction));
+        Self {
+            link_mass_scale,
+            damping_scale,
+            armature_scale,
+            motor_gain_scale,
+            friction_scale,
+            arm_lag_scale,
+        }
+    }
+
+    /// The mass factor of link `name` (1 for links the draw did not cover).
+    pub fn mass_scale_of(&self, name: &str) -> f64 {
+        self.link_mass_scale
+            .iter()
+            .find(|(n, _)| n == name)
+            .map_or(1.0, |(_, f)| *f)
+    }
+}
+
 /// The simulated remote world: PR2 arm, Shadow hand, fixed objects, external loads.
 ///
 /// Deterministic: the same config, seed and sequence of commands and steps give
@@ -77,8 +141,11 @@ pub struct World {
     hand_lower: SVector<f64, 17>,
     hand_upper: SVector<f64, 17>,
     inertia: SVector<f64, 17>,
+    /// Viscous damping per finger joint (perturbed), N m s/rad.
+    damping: SVector<f64, 17>,
     /// Gravity on the fingers, from the simulated robot's own masses.
     gravity: GravityModel<17>,
+    perturbation: Perturbation,
     capsules: Vec<LinkCapsule>,
     tip_links: [LinkId; 5],
     palm: LinkId,
@@ -214,15 +281,21 @@ impl World {
             }
         }
 
+        // The simulated robot's own parameters: nominal times a seeded draw.
+        let perturbation = Perturbation::draw(&config, &robot, &dof_hand);
+
         // Diagonal joint inertia at the straight-finger posture (the largest it gets).
         let mut kin = robot.new_state();
         let neutral = robot.neutral_positions();
         robot.update(&mut kin, &neutral)?;
-        let mut inertia = SVector::<f64, 17>::repeat(config.hand.armature_kg_m2);
+        let mut inertia = perturbation.armature_scale * config.hand.armature_kg_m2;
         for link in robot.links() {
-            let Some(inertial) = link.inertial else {
+            let Some(mut inertial) = link.inertial else {
                 continue;
             };
+            let scale = perturbation.mass_scale_of(&link.name);
+            inertial.mass_kg *= scale;
+            inertial.inertia *= scale;
             let id = robot.link_id(&link.name)?;
             let pose = robot.link_pose(&kin, id);
             let com_pose = pose * inertial.origin;
@@ -238,16 +311,21 @@ impl World {
             }
         }
 
-        let arm = ArmSim::new(&config.arm, arm_limits);
+        let arm_lag_s = perturbation
+            .arm_lag_scale
+            .map(|f| f * config.arm.velocity_lag_s);
+        let arm = ArmSim::new(&config.arm, arm_limits).with_lags(arm_lag_s);
         let hand_q = SVector::<f64, 17>::from_fn(|i, _| {
             config.hand.initial_position_rad[i].clamp(hand_lower[i], hand_upper[i])
         });
         let rng = ChaCha8Rng::seed_from_u64(config.seed);
-        let gravity = GravityModel::new(
+        let mut gravity = GravityModel::new(
             robot.clone(),
             &FINGER_JOINTS,
             Vector3::from(config.gravity_m_s2),
         )?;
+        gravity.scale_masses(|link| perturbation.mass_scale_of(link));
+        let damping = perturbation.damping_scale * config.hand.damping_nm_s_rad;
         let mut world = Self {
             robot,
             kin,
@@ -257,8 +335,10 @@ impl World {
             hand_lower,
             hand_upper,
             inertia,
+            damping,
             gravity,
             capsules,
+            perturbation,
             tip_links,
             palm,
             arm,
@@ -466,15 +546,17 @@ impl World {
         let v = self.hand_qd;
         let mut force = SVector::<f64, 17>::zeros();
         let mut stiff = SVector::<f64, 17>::zeros();
-        let mut damp = SVector::<f64, 17>::repeat(cfg.hand.damping_nm_s_rad);
-        force -= v * cfg.hand.damping_nm_s_rad;
+        let mut damp = self.damping;
+        force -= v.component_mul(&self.damping);
 
         // Motors.
         let max = cfg.hand.max_effort_nm;
+        let gain = self.perturbation.motor_gain_scale;
         let effort = match self.hand_command {
-            HandCommand::Effort(tau) => tau.map(|t| {
+            HandCommand::Effort(tau) => SVector::from_fn(|i, _| {
+                let t = tau[i];
                 if t.is_finite() {
-                    t.clamp(-max, max)
+                    (t * gain[i]).clamp(-max, max)
                 } else {
                     0.0
                 }
@@ -554,7 +636,9 @@ impl World {
                 let normal_force_n = fn_raw.max(0.0);
                 let vt = vel - pen.normal * vn;
                 let vt_norm = vt.norm();
-                let limit = contact.friction_coefficient * normal_force_n;
+                let limit = contact.friction_coefficient
+                    * self.perturbation.friction_scale
+                    * normal_force_n;
                 let viscous = contact.friction_damping_n_s_m * vt_norm;
                 let sticking = viscous < limit;
                 let friction_force_n = if vt_norm > 1e-12 {
@@ -735,6 +819,16 @@ impl World {
     /// Finger joint limits `(lower, upper)`, rad.
     pub fn hand_limits_rad(&self) -> (SVector<f64, 17>, SVector<f64, 17>) {
         (self.hand_lower, self.hand_upper)
+    }
+
+    /// The factors by which this simulated robot differs from the nominal model.
+    pub fn perturbation(&self) -> &Perturbation {
+        &self.perturbation
+    }
+
+    /// Viscous damping of each finger joint, N m s/rad (perturbed).
+    pub fn hand_damping_nm_s_rad(&self) -> SVector<f64, 17> {
+        self.damping
     }
 
     /// Diagonal joint-space inertia of each finger joint, kg m^2 (armature included).

@@ -6,7 +6,7 @@ use teleop_hardware::{ArmCommand, ArmHardware};
 use teleop_sim::{World, WorldConfig};
 
 fn world() -> World {
-    World::new(WorldConfig::default()).unwrap()
+    World::new(WorldConfig::nominal()).unwrap()
 }
 
 fn joint_cmd(i: usize, v: f64) -> SVector<f64, 7> {

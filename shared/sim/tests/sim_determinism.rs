@@ -70,3 +70,52 @@ fn config_round_trips_and_rejects_unknown_fields() {
     };
     assert!(World::new(bad).is_err());
 }
+
+/// The default world is not the nominal model: its factors are drawn from the seed,
+/// within the configured fractions, and the same seed draws the same robot.
+#[test]
+fn the_default_robot_is_perturbed_within_its_fractions_and_repeatably() {
+    use teleop_sim::PerturbationConfig;
+    let a = World::new(WorldConfig::default()).unwrap();
+    let b = World::new(WorldConfig::default()).unwrap();
+    assert_eq!(a.perturbation(), b.perturbation());
+    let p = a.perturbation();
+    let f = PerturbationConfig::default();
+    assert!(!p.link_mass_scale.is_empty());
+    let within = |x: f64, frac: f64| (1.0 - frac..=1.0 + frac).contains(&x);
+    assert!(
+        p.link_mass_scale
+            .iter()
+            .all(|(_, s)| within(*s, f.mass_fraction))
+    );
+    assert!(
+        p.link_mass_scale
+            .iter()
+            .any(|(_, s)| (s - 1.0).abs() > 0.02)
+    );
+    assert!(
+        p.damping_scale
+            .iter()
+            .all(|s| within(*s, f.damping_fraction))
+    );
+    assert!(
+        p.motor_gain_scale
+            .iter()
+            .all(|s| within(*s, f.motor_gain_fraction))
+    );
+    assert!(within(p.friction_scale, f.friction_fraction));
+    assert!(
+        p.arm_lag_scale
+            .iter()
+            .all(|s| within(*s, f.arm_lag_fraction))
+    );
+    // The nominal world's inertias differ from the perturbed one's.
+    let n = World::new(WorldConfig::nominal()).unwrap();
+    assert!((n.hand_inertia_kg_m2() - a.hand_inertia_kg_m2()).amax() > 1e-6);
+    assert_eq!(n.perturbation().friction_scale, 1.0);
+    // Another seed, another robot.
+    let mut other = WorldConfig::default();
+    other.perturbation.seed += 1;
+    let c = World::new(other).unwrap();
+    assert_ne!(c.perturbation(), a.perturbation());
+}

@@ -14,7 +14,7 @@ fn idx(name: &str) -> usize {
 fn constant_effort_accelerates_per_inertia_and_settles_against_damping() {
     let config = WorldConfig {
         gravity_m_s2: [0.0; 3],
-        ..WorldConfig::default()
+        ..WorldConfig::nominal()
     };
     let b = config.hand.damping_nm_s_rad;
     let mut w = World::new(config).unwrap();
@@ -56,7 +56,7 @@ fn constant_effort_accelerates_per_inertia_and_settles_against_damping() {
 
 #[test]
 fn effort_is_clamped_and_limits_hold() {
-    let mut w = World::new(WorldConfig::default()).unwrap();
+    let mut w = World::new(WorldConfig::nominal()).unwrap();
     let j = idx("rh_FFJ3");
     let mut cmd = SVector::<f64, 17>::zeros();
     cmd[j] = 50.0;
@@ -75,7 +75,7 @@ fn effort_is_clamped_and_limits_hold() {
 #[test]
 fn gravity_flexes_passive_fingers_when_palm_faces_down() {
     // Arm at zero: palm down. Zero effort: the fingers hang.
-    let mut w = World::new(WorldConfig::default()).unwrap();
+    let mut w = World::new(WorldConfig::nominal()).unwrap();
     let palm = w.palm_pose();
     assert!(
         (palm.rotation * nalgebra::Vector3::y()).z > 0.99,
@@ -89,7 +89,7 @@ fn gravity_flexes_passive_fingers_when_palm_faces_down() {
     assert!(w.fingertip_positions_m()[0].z < tip0.z - 0.005);
 
     // Palm up (forearm rolled by pi): gravity extends the fingers instead.
-    let mut config = WorldConfig::default();
+    let mut config = WorldConfig::nominal();
     config.arm.initial_position_rad[4] = std::f64::consts::PI;
     let mut w = World::new(config).unwrap();
     w.command_hand(&HandCommand::Effort(SVector::zeros()));
@@ -99,7 +99,7 @@ fn gravity_flexes_passive_fingers_when_palm_faces_down() {
 
 #[test]
 fn position_servo_reaches_target_in_free_space() {
-    let (shared, _arm, mut hand) = teleop_sim::share(World::new(WorldConfig::default()).unwrap());
+    let (shared, _arm, mut hand) = teleop_sim::share(World::new(WorldConfig::nominal()).unwrap());
     let mut target = SVector::<f64, 17>::zeros();
     target[idx("rh_MFJ3")] = 0.8;
     target[idx("rh_THJ4")] = 0.5;
@@ -120,7 +120,11 @@ fn position_servo_reaches_target_in_free_space() {
 /// against their limits; nothing may gain energy.
 #[test]
 fn energy_stays_bounded_with_zero_command() {
-    let mut w = World::touching_task(&TouchingTaskConfig::default()).unwrap();
+    let mut w = World::touching_task(&TouchingTaskConfig {
+        world: WorldConfig::nominal(),
+        ..TouchingTaskConfig::default()
+    })
+    .unwrap();
     w.command_hand(&HandCommand::Effort(SVector::zeros()));
     let mut peak: f64 = 0.0;
     let mut first_second: f64 = 0.0;
@@ -154,7 +158,10 @@ fn energy_stays_bounded_with_zero_command() {
 /// substep: the stiffest the hand is driven.
 #[test]
 fn bang_bang_effort_is_stable_with_one_substep() {
-    let mut config = TouchingTaskConfig::default();
+    let mut config = TouchingTaskConfig {
+        world: WorldConfig::nominal(),
+        ..TouchingTaskConfig::default()
+    };
     config.world.hand.substeps = 1;
     let mut w = World::touching_task(&config).unwrap();
     let mut peak: f64 = 0.0;

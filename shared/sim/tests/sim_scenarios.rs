@@ -4,7 +4,9 @@
 use nalgebra::SVector;
 use teleop_hardware::HandCommand;
 use teleop_interfaces::joints::SHADOW_FINGER_JOINTS as FINGER_JOINTS;
-use teleop_sim::{CupGraspConfig, ExternalLoad, LoadTarget, TouchingTaskConfig, World};
+use teleop_sim::{
+    CupGraspConfig, ExternalLoad, LoadTarget, TouchingTaskConfig, World, WorldConfig,
+};
 
 fn idx(name: &str) -> usize {
     FINGER_JOINTS.iter().position(|j| *j == name).unwrap()
@@ -12,7 +14,10 @@ fn idx(name: &str) -> usize {
 
 #[test]
 fn touching_surface_is_placed_at_the_clearance() {
-    let config = TouchingTaskConfig::default();
+    let config = TouchingTaskConfig {
+        world: WorldConfig::nominal(),
+        ..TouchingTaskConfig::default()
+    };
     let mut w = World::touching_task(&config).unwrap();
     let ff = w.distal_link(0).unwrap();
     let gap = w.clearance_m(0, None).unwrap();
@@ -30,7 +35,10 @@ fn touching_surface_is_placed_at_the_clearance() {
 
 #[test]
 fn flexing_ff_into_the_mouse_loads_ff_only_and_deeper_pushes_harder() {
-    let config = TouchingTaskConfig::default();
+    let config = TouchingTaskConfig {
+        world: WorldConfig::nominal(),
+        ..TouchingTaskConfig::default()
+    };
     let mut w = World::touching_task(&config).unwrap();
     let reference = SVector::<f64, 17>::from(config.hand_posture_rad);
     let mut forces = Vec::new();
@@ -62,7 +70,10 @@ fn flexing_ff_into_the_mouse_loads_ff_only_and_deeper_pushes_harder() {
 
 #[test]
 fn closing_the_hand_on_the_cup_loads_several_fingertips() {
-    let config = CupGraspConfig::default();
+    let config = CupGraspConfig {
+        world: WorldConfig::nominal(),
+        ..CupGraspConfig::default()
+    };
     let mut w = World::cup_grasp(&config).unwrap();
     assert!(w.clearance_m(0, None).unwrap() >= config.clearance_m - 1e-12);
     w.step(0.3);
@@ -81,7 +92,13 @@ fn closing_the_hand_on_the_cup_loads_several_fingertips() {
 #[test]
 fn screw_pouring_load_makes_the_thumb_slip_under_position_control() {
     let mut w = World::screw_pouring(1.0).unwrap();
-    let closed = SVector::from(CupGraspConfig::default().closed_posture_rad);
+    let closed = SVector::from(
+        CupGraspConfig {
+            world: WorldConfig::nominal(),
+            ..CupGraspConfig::default()
+        }
+        .closed_posture_rad,
+    );
     w.command_hand(&HandCommand::Position(closed));
     w.step(1.0);
     let th4 = idx("rh_THJ4");
@@ -96,7 +113,11 @@ fn screw_pouring_load_makes_the_thumb_slip_under_position_control() {
     assert!(w.fingertip_force_n()[4] < force_before);
 
     // A fingertip-force load works as well and is refused for an unknown finger.
-    let mut w = World::cup_grasp(&CupGraspConfig::default()).unwrap();
+    let mut w = World::cup_grasp(&CupGraspConfig {
+        world: WorldConfig::nominal(),
+        ..CupGraspConfig::default()
+    })
+    .unwrap();
     let bad = ExternalLoad {
         target: LoadTarget::FingertipForce {
             finger: "xx".to_owned(),

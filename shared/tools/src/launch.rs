@@ -1,8 +1,8 @@
 //! `teleop launch`: starts every node of the node table on this machine, as separate
 //! processes talking Zenoh peer-to-peer over loopback, shows the live monitor, and on
-//! Ctrl-C / SIGTERM / `--duration-s` stops them gracefully: each gets SIGINT (operator
-//! site first, the robots' owner last, so the controllers' stop commands still reach
-//! the hardware), a grace period to shut down, then SIGKILL. Every node's final status
+//! Ctrl-C / SIGTERM / `--duration-s` stops them gracefully: each gets SIGINT (the
+//! controllers first, the robots' owner last, so the controllers' stop commands still
+//! reach the hardware), a grace period to shut down, then SIGKILL. Every node's final status
 //! (its lifecycle state at the stop, its counters, its last error) is collected from
 //! the bus and printed as a summary.
 
@@ -153,7 +153,8 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// SIGINT to each node in reverse start order, wait up to `grace_s`, then SIGKILL.
+/// SIGINT to each node in the node table's stop order, wait up to `grace_s`, then
+/// SIGKILL.
 async fn stop_all(
     children: &mut [(&'static NodeSpec, Child)],
     grace_s: f64,
@@ -162,7 +163,10 @@ async fn stop_all(
 ) -> Vec<NodeOutcome> {
     let grace = Duration::from_secs_f64(grace_s.clamp(0.1, 120.0));
     let mut outcomes = Vec::new();
-    for (spec, child) in children.iter_mut().rev() {
+    for stop in teleop_interfaces::nodes::stop_order() {
+        let Some((spec, child)) = children.iter_mut().find(|(s, _)| s.name == stop.name) else {
+            continue;
+        };
         let (exit, graceful) = match child.try_wait() {
             Ok(Some(s)) => (format!("exited before the stop: {s}"), false),
             _ => {
@@ -198,7 +202,8 @@ async fn stop_all(
             final_status: log.finals.get(spec.name).cloned(),
         });
     }
-    outcomes.reverse();
+    // Summarize in start order.
+    outcomes.sort_by_key(|o| NODES.iter().position(|n| n.name == o.name));
     outcomes
 }
 

@@ -255,7 +255,7 @@ impl<const N: usize> AdaptiveImpedance<N> {
             let rate_k = c.theta_k[i] * eps[i] * e[i];
             let rate_d = c.theta_d[i] * eps[i] * de[i];
             let rate_v = c.theta_v[i] * eps[i];
-            // Forgetting (ours, off by default): exact decay toward θ⁰ over h,
+            // Forgetting (ours; on by default, fading with the sliding error): exact decay toward θ⁰ over h,
             // skipped entirely at α = 0 so the printed law is computed exactly.
             let gamma = c.alpha[i] / (1.0 + c.beta[i] * eps[i] * eps[i]);
             let forget = |w: f64, w0: f64| {

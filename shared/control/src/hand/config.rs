@@ -355,12 +355,17 @@ pub struct AdaptiveConfig<const N: usize> {
     /// rather than zero. Default 1/s (ours): without it (`0`, the law as printed)
     /// `K_s`, `K_d` and `v` can only ratchet up on a lasting contact (see the
     /// [module docs](super::adaptive)); on the simulated touching task the printed law
-    /// peaks at 0.52x the position mode's force, 1/s at 0.41x
-    /// (`remote_site/tests/scenario_touching.rs`).
+    /// peaks at 0.52x the position mode's force, the default at 0.49x
+    /// (`tests/scenario_touching.rs`).
     #[serde(default = "adaptive_forgetting_rate_per_s")]
     pub forgetting_rate_per_s: PerJoint<N>,
     /// `β` of the forgetting factor, s²/rad²: forgetting fades while the sliding
-    /// error is large. Default 0.
+    /// error is large, so learning against a slip or a load (a growing error) is not
+    /// weakened. Default 4 (ours): at `ε = 0.5 rad/s` forgetting runs at half its rate,
+    /// at `1 rad/s` at a fifth. The trade-off, measured on the simulated hand
+    /// (`docs/remote-site.md`): touching peaks at 0.41x (`β = 0`), 0.49x (4), 0.51x
+    /// (16) the position mode's force, while the thumb's error under the load ramp
+    /// falls from 0.033 to 0.027 and 0.022 rad.
     #[serde(default = "adaptive_forgetting_error_scale_s2_rad2")]
     pub forgetting_error_scale_s2_rad2: PerJoint<N>,
     /// The Gaussian basis and its phase.
@@ -386,7 +391,7 @@ impl<const N: usize> Default for AdaptiveConfig<N> {
             sliding_gain_per_s: u(10.0),
             sliding_feedback_nm_s_rad: u(0.02),
             forgetting_rate_per_s: u(1.0),
-            forgetting_error_scale_s2_rad2: u(0.0),
+            forgetting_error_scale_s2_rad2: u(4.0),
             basis: BasisConfig::default(),
         }
     }

@@ -216,14 +216,32 @@ impl<const N: usize> HandController<N> {
         let input =
             JointInput::new(*position_rad, *velocity_rad_s, target).with_gravity(*gravity_nm);
         self.checked(dt_s, &input)?;
-        let limit = &self.hold_max_effort_nm;
+        // The law's effort within the normal limits, then scaled down as a whole so no
+        // joint exceeds its hold limit: the efforts keep their ratios, so each
+        // fingertip keeps pushing in the same direction, only less hard (clamping joint
+        // by joint would turn the fingertip forces and let a grasp slide).
+        let limit = &self.max_effort_nm;
+        let scaled = |tau: SVector<f64, N>, hold: &SVector<f64, N>| {
+            let scale = (0..N)
+                .filter(|&i| tau[i].abs() > hold[i])
+                .map(|i| hold[i] / tau[i].abs())
+                .fold(1.0, f64::min);
+            tau * scale
+        };
+        let hold = self.hold_max_effort_nm;
         let output = match self.mode {
             HandMode::Position => match self.config.position.servo {
-                PositionServo::Effort => HandOutput::Effort(self.position.effort(&input, limit)),
+                PositionServo::Effort => {
+                    HandOutput::Effort(scaled(self.position.effort(&input, limit), &hold))
+                }
                 PositionServo::Hardware => HandOutput::Position(target),
             },
-            HandMode::FixedImpedance => HandOutput::Effort(self.fixed.effort(&input, limit)),
-            HandMode::Adaptive => HandOutput::Effort(self.adaptive.effort_frozen(&input, limit)),
+            HandMode::FixedImpedance => {
+                HandOutput::Effort(scaled(self.fixed.effort(&input, limit), &hold))
+            }
+            HandMode::Adaptive => {
+                HandOutput::Effort(scaled(self.adaptive.effort_frozen(&input, limit), &hold))
+            }
         };
         self.hold_target_rad = Some(target);
         self.holding = true;

@@ -1,0 +1,71 @@
+//! `teleop launch` starts every node, lets the simulated operator clutch and move, stops
+//! the system gracefully on `--duration-s` and prints each node's final status.
+//!
+//! Needs the node binaries next to `teleop` (`cargo build --release --workspace --bins`;
+//! `tests/run.sh` builds them first).
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::path::Path;
+use std::process::Command;
+
+use teleop_interfaces::nodes::NODES;
+
+#[test]
+fn launch_runs_the_system_and_stops_it_gracefully_with_a_summary() {
+    let teleop = Path::new(env!("CARGO_BIN_EXE_teleop"));
+    let dir = teleop.parent().unwrap();
+    for node in NODES {
+        assert!(
+            dir.join(node.name).is_file(),
+            "{} missing next to teleop: build the node binaries first \
+             (cargo build --release --workspace --bins; tests/run.sh does)",
+            node.name
+        );
+    }
+    let out = Command::new(teleop)
+        .args([
+            "--domain-id",
+            "91",
+            "launch",
+            "--duration-s",
+            "7",
+            "--quiet",
+        ])
+        .output()
+        .expect("run teleop launch");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    println!("{stdout}");
+    assert!(
+        out.status.success(),
+        "launch failed ({}):\n{stdout}\n{stderr}",
+        out.status
+    );
+    assert!(stdout.contains("== teleop launch: summary"), "{stdout}");
+    for node in NODES {
+        let line = stdout
+            .lines()
+            .find(|l| l.starts_with(&format!("{} ", node.name)))
+            .unwrap_or_else(|| panic!("no summary line for {}:\n{stdout}", node.name));
+        assert!(line.contains("graceful"), "{line}");
+        assert!(line.contains("reported"), "{line}");
+        assert!(line.contains("exit status: 0"), "{line}");
+    }
+    // The simulated operator pressed the clutch after 1 s: the arm was engaged and
+    // moving when the system stopped; the hand had no targets (no hand inference yet).
+    let state = |name: &str| {
+        stdout
+            .lines()
+            .find(|l| l.starts_with(&format!("{name} ")))
+            .unwrap()
+            .split_whitespace()
+            .nth(2)
+            .unwrap()
+            .to_owned()
+    };
+    assert_eq!(state("pr2_arm_controller"), "Active", "{stdout}");
+    assert_eq!(state("shadow_hand_controller"), "Inactive", "{stdout}");
+    assert_eq!(state("remote_sim"), "Active", "{stdout}");
+    assert!(stdout.contains("arm.engagements=1"), "{stdout}");
+    assert!(stdout.contains("hand.hold.no_target="), "{stdout}");
+}
