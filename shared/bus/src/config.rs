@@ -43,6 +43,13 @@ pub struct ZenohSettings {
     /// A full Zenoh JSON5 configuration file, applied first; the fields above override
     /// it where set.
     pub config_file: Option<PathBuf>,
+    /// Network interfaces on which hardware topics (`teleop/hw/...`: a robot's
+    /// commands and states) may travel. On every other interface of this host this
+    /// node neither sends nor accepts them (Zenoh access control on the node's own
+    /// session), so hardware traffic does not leave the robot's site. Default `["lo"]`:
+    /// it stays on this machine. A site whose drivers and controllers sit on several
+    /// machines names its site LAN interface here; `["*"]` lifts the restriction.
+    pub hardware_interfaces: Vec<String>,
 }
 
 impl Default for ZenohSettings {
@@ -54,6 +61,7 @@ impl Default for ZenohSettings {
             multicast_scouting: true,
             multicast_interface: "lo".into(),
             config_file: None,
+            hardware_interfaces: vec!["lo".into()],
         }
     }
 }
@@ -129,8 +137,53 @@ impl ZenohSettings {
         // (docs/benchmarks.md, bus section). Memory cost: up to 1 MiB per link.
         set("transport/link/tx/queue/size/data_low", "16".into())?;
         set("transport/link/rx/buffer_size", "1048576".into())?;
+        if let Some(acl) = hardware_acl(&self.hardware_interfaces, &host_interfaces()) {
+            set("access_control", acl.to_string())?;
+        }
         Ok(cfg)
     }
+}
+
+/// Key expression of every hardware topic's data, in any domain.
+pub const HARDWARE_KEYS: &str = "*/teleop/hw/**";
+
+/// The network interfaces of this host (Linux: `/sys/class/net`); empty elsewhere.
+pub fn host_interfaces() -> Vec<String> {
+    let mut out: Vec<String> = std::fs::read_dir("/sys/class/net")
+        .map(|dir| {
+            dir.filter_map(|e| e.ok())
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .collect()
+        })
+        .unwrap_or_default();
+    out.sort();
+    out
+}
+
+/// The Zenoh access-control block that keeps hardware topics off every interface of
+/// `host` not in `allowed`; `None` when nothing is to be denied (`"*"` allowed, or no
+/// other interface).
+pub fn hardware_acl(allowed: &[String], host: &[String]) -> Option<serde_json::Value> {
+    if allowed.iter().any(|a| a == "*") {
+        return None;
+    }
+    let denied: Vec<&String> = host.iter().filter(|i| !allowed.contains(i)).collect();
+    if denied.is_empty() {
+        return None;
+    }
+    Some(serde_json::json!({
+        "enabled": true,
+        "default_permission": "allow",
+        "rules": [{
+            "id": "hardware_topics",
+            "permission": "deny",
+            "flows": ["egress", "ingress"],
+            "messages": ["put", "delete", "declare_subscriber", "query", "reply", "declare_queryable"],
+            "key_exprs": [HARDWARE_KEYS],
+        }],
+        "subjects": [{ "id": "off_site", "interfaces": denied }],
+        "policies": [{ "rules": ["hardware_topics"], "subjects": ["off_site"] }],
+    }))
 }
 
 fn json_string(s: &str) -> String {
@@ -151,6 +204,22 @@ mod tests {
             .zenoh
             .to_zenoh()
             .expect("default zenoh config is valid");
+    }
+
+    #[test]
+    fn hardware_topics_are_denied_on_other_interfaces_only() {
+        let host: Vec<String> = ["eth0", "lo", "wlan0"].map(String::from).to_vec();
+        let acl = hardware_acl(&["lo".into()], &host).expect("eth0 and wlan0 denied");
+        assert_eq!(
+            acl["subjects"][0]["interfaces"],
+            serde_json::json!(["eth0", "wlan0"])
+        );
+        assert_eq!(acl["rules"][0]["key_exprs"][0], HARDWARE_KEYS);
+        assert!(hardware_acl(&["*".into()], &host).is_none());
+        assert!(hardware_acl(&host, &host).is_none());
+        // The default builds a valid Zenoh config with the block.
+        BusConfig::default().zenoh.to_zenoh().expect("valid");
+        assert!(host_interfaces().contains(&"lo".to_owned()));
     }
 
     #[test]

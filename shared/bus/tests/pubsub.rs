@@ -66,7 +66,8 @@ async fn wait_connected(
     for _ in 0..200 {
         publisher.put(&joint_state(0)).unwrap();
         if sub.recv_timeout(Duration::from_millis(25)).await.is_some() {
-            // Drain whatever else arrived.
+            // Let samples still in flight land, then drain them.
+            tokio::time::sleep(Duration::from_millis(100)).await;
             while sub.try_recv().is_some() {}
             return;
         }
@@ -103,6 +104,8 @@ async fn control_topics_keep_only_the_newest() {
     wait_connected(&publisher, &sub).await;
     for i in 1..=20 {
         publisher.put(&joint_state(i)).unwrap();
+        // Spaced so the transport's queue never overflows (it would drop samples).
+        tokio::time::sleep(Duration::from_millis(2)).await;
     }
     // Wait until the last one is in, then there must be exactly one sample queued.
     tokio::time::sleep(Duration::from_millis(300)).await;
@@ -127,13 +130,19 @@ async fn stale_out_of_order_and_malformed_samples_are_dropped_and_counted() {
         }
     }
     assert!(connected);
+    // Let samples still in flight land before taking the baseline.
+    tokio::time::sleep(Duration::from_millis(100)).await;
     while sub.try_recv().is_some() {}
     let base = sub.stats();
+    // Samples are spaced out below: the transport drops samples of a burst that
+    // overflows its queue (congestion control `Drop`), which is not what is tested.
+    let gap = || tokio::time::sleep(Duration::from_millis(10));
 
     // Stale: source timestamp 1 s ago, deadline is 100 ms (+20 ms tolerance).
     publisher
         .put_at(&PoseStamped::default(), unix_nanos_now() - 1_000_000_000)
         .unwrap();
+    gap().await;
     // Out of order: a sequence number below the last accepted one.
     let payload = teleop_msgs::encode(&PoseStamped::default()).unwrap();
     publisher
@@ -146,6 +155,7 @@ async fn stale_out_of_order_and_malformed_samples_are_dropped_and_counted() {
             }),
         )
         .unwrap();
+    gap().await;
     // Malformed payload with a valid attachment, and a valid payload without attachment.
     let good_att = |seq| Attachment {
         sequence: seq,
@@ -155,7 +165,9 @@ async fn stale_out_of_order_and_malformed_samples_are_dropped_and_counted() {
     publisher
         .put_raw(vec![0, 1, 0, 0, 0xFF, 0xFF, 0xFF, 0xFF], Some(good_att(1)))
         .unwrap();
+    gap().await;
     publisher.put_raw(payload.clone(), None).unwrap();
+    gap().await;
     // A sample from 1 h in the future.
     publisher
         .put_at(
@@ -317,6 +329,7 @@ async fn source_policy_and_lock_refuse_other_publishers() {
     let before = any.stats().foreign;
     for i in 0..10 {
         second.put(&joint_state(100 + i)).unwrap();
+        tokio::time::sleep(Duration::from_millis(5)).await;
     }
     own.put(&joint_state(7)).unwrap();
     tokio::time::sleep(Duration::from_millis(300)).await;
@@ -359,4 +372,38 @@ async fn a_late_publisher_is_announced_to_the_directory() {
     }
     assert_eq!(info.expect("announced").node_name, "late_node_c");
     drop(a);
+}
+
+/// Hardware topics travel only on the interfaces a node allows: on loopback by
+/// default; a node that allows only another interface neither sends nor takes them over
+/// loopback, while the other topics still flow.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn hardware_topics_stay_on_the_allowed_interfaces() {
+    // Allowed on loopback (the default): the command arrives.
+    let (a, b) = pair(19).await;
+    let cmd = a.publisher(&topics::HW_PR2_ARM_COMMAND).await.unwrap();
+    let sub = b.subscriber(&topics::HW_PR2_ARM_COMMAND).await.unwrap();
+    wait_connected(&cmd, &sub).await;
+    drop((a, b));
+    // The receiving node allows hardware topics on a LAN interface only.
+    let (a_cfg, mut b_cfg) = pair_config(20);
+    b_cfg.zenoh.hardware_interfaces = vec!["site_lan0".into()];
+    let a = Bus::open("node_a", &a_cfg).await.unwrap();
+    let b = Bus::open("node_b", &b_cfg).await.unwrap();
+    let state = a.publisher(&topics::SHADOW_JOINT_STATES).await.unwrap();
+    let state_sub = b.subscriber(&topics::SHADOW_JOINT_STATES).await.unwrap();
+    wait_connected(&state, &state_sub).await;
+    let cmd = a.publisher(&topics::HW_PR2_ARM_COMMAND).await.unwrap();
+    let sub = b.subscriber(&topics::HW_PR2_ARM_COMMAND).await.unwrap();
+    for i in 0..50 {
+        cmd.put(&joint_state(i)).unwrap();
+        state.put(&joint_state(i)).unwrap();
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    assert!(
+        sub.try_recv().is_none(),
+        "a hardware command crossed loopback"
+    );
+    assert_eq!(sub.stats().received, 0);
+    assert!(state_sub.try_recv().is_some(), "other topics still flow");
 }

@@ -331,3 +331,136 @@ impl<const N: usize, B: ArmHardware<N>> ArmHardware<N> for SafeArm<N, B> {
         self.apply(now_s, Some(command))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use teleop_kinematics::robots;
+
+    const DT: f64 = 0.004;
+
+    fn safety(config: ArmSafetyConfig) -> ArmSafety<7> {
+        ArmSafety::new(robots::pr2_arm_chain().unwrap(), config).unwrap()
+    }
+
+    fn state(q: SVector<f64, 7>) -> ArmState<7> {
+        ArmState {
+            time_s: 0.0,
+            position_rad: q,
+            velocity_rad_s: SVector::zeros(),
+        }
+    }
+
+    fn working() -> SVector<f64, 7> {
+        SVector::from_column_slice(&[-0.5, 0.3, -1.0, -1.4, 0.3, -0.1, 0.1])
+    }
+
+    fn cmd(v: SVector<f64, 7>) -> ArmCommand<7> {
+        ArmCommand { velocity_rad_s: v }
+    }
+
+    #[test]
+    fn a_small_command_passes_unchanged_after_the_ramp() {
+        let mut s = safety(ArmSafetyConfig::default());
+        let v = SVector::repeat(0.01);
+        let mut out = ArmCommand::stop();
+        for k in 0..50 {
+            out = s.step(f64::from(k) * DT, Some(&cmd(v)), Some(&state(working())));
+        }
+        assert_eq!(out.velocity_rad_s, v);
+    }
+
+    #[test]
+    fn speeds_acceleration_and_tool_speed_are_limited_and_counted() {
+        let mut s = safety(ArmSafetyConfig::default());
+        let q = working();
+        let over = cmd(SVector::repeat(5.0));
+        let mut last = SVector::<f64, 7>::zeros();
+        for k in 0..500 {
+            let out = s.step(f64::from(k) * DT, Some(&over), Some(&state(q)));
+            let v = out.velocity_rad_s;
+            // Acceleration, joint speed and tool speed limits all hold.
+            assert!((v - last).amax() <= 8.0 * DT + 1e-9 || s.tool_speed_m_s(&q, &v) <= 0.25);
+            for i in 0..7 {
+                assert!(v[i].abs() <= s.limits().velocity_rad_s[i] + 1e-12);
+            }
+            assert!(s.tool_speed_m_s(&q, &v) <= 0.25 + 1e-9);
+            last = v;
+        }
+        let c = s.counters();
+        assert!(c.get(Intervention::Acceleration) > 0);
+        assert!(c.get(Intervention::ToolSpeed) > 0);
+        assert_eq!(c.commands, 500);
+    }
+
+    #[test]
+    fn a_stale_command_brakes_to_zero_and_nan_is_refused() {
+        let mut s = safety(ArmSafetyConfig::default());
+        let q = working();
+        let v = cmd(SVector::repeat(0.05));
+        for k in 0..50 {
+            s.step(f64::from(k) * DT, Some(&v), Some(&state(q)));
+        }
+        // A NaN command is refused: the previous one stays in force.
+        let mut nan = v;
+        nan.velocity_rad_s[2] = f64::NAN;
+        let out = s.step(50.0 * DT, Some(&nan), Some(&state(q)));
+        assert_eq!(out.velocity_rad_s, v.velocity_rad_s);
+        assert_eq!(s.counters().get(Intervention::NonFinite), 1);
+        // No command for longer than the timeout: zero.
+        let mut t = 50.0 * DT;
+        let mut out = ArmCommand::stop();
+        while t < 50.0 * DT + 0.2 {
+            t += DT;
+            out = s.step(t, None, Some(&state(q)));
+        }
+        assert_eq!(out.velocity_rad_s, SVector::<f64, 7>::zeros());
+        assert!(s.counters().get(Intervention::Timeout) > 0);
+        // No state: stop at once.
+        let out = s.step(t + DT, Some(&v), None);
+        assert_eq!(out.velocity_rad_s, SVector::<f64, 7>::zeros());
+        assert_eq!(s.counters().get(Intervention::NoState), 1);
+    }
+
+    #[test]
+    fn motion_toward_a_position_limit_stops_inside_it() {
+        let mut s = safety(ArmSafetyConfig::default());
+        // Elbow (joint 3) near its upper limit, commanded toward it.
+        let mut q = working();
+        let upper = s.limits().upper_rad[3];
+        q[3] = upper - 0.021;
+        let mut v = SVector::zeros();
+        v[3] = 0.5;
+        let mut out = ArmCommand::stop();
+        for k in 0..200 {
+            out = s.step(f64::from(k) * DT, Some(&cmd(v)), Some(&state(q)));
+            q += out.velocity_rad_s * DT;
+        }
+        assert!(
+            q[3] <= upper - 0.02 + 1e-3,
+            "stopped at {} of {upper}",
+            q[3]
+        );
+        assert!(out.velocity_rad_s[3].abs() < 0.05);
+        assert!(s.counters().get(Intervention::PositionLimit) > 0);
+        // Away from the limit is free.
+        v[3] = -0.05;
+        for k in 200..300 {
+            out = s.step(f64::from(k) * DT, Some(&cmd(v)), Some(&state(q)));
+        }
+        assert!((out.velocity_rad_s[3] + 0.05).abs() < 1e-12);
+    }
+
+    #[test]
+    fn bad_settings_are_named() {
+        let e = ArmSafety::new(
+            robots::pr2_arm_chain().unwrap(),
+            ArmSafetyConfig {
+                max_tool_speed_m_s: f64::NAN,
+                ..ArmSafetyConfig::default()
+            },
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("max_tool_speed_m_s"), "{e}");
+    }
+}

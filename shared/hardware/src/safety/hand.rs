@@ -316,3 +316,135 @@ impl<B: HandHardware> HandHardware for SafeHand<B> {
         self.apply(now_s, Some(command))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const DT: f64 = 0.002;
+
+    fn safety() -> HandSafety {
+        HandSafety::new(HandLimits::shadow().unwrap(), HandSafetyConfig::default()).unwrap()
+    }
+
+    fn state(q: Joints, qd: Joints) -> HandState {
+        HandState {
+            time_s: 0.0,
+            position_rad: q,
+            velocity_rad_s: qd,
+            effort_nm: Joints::zeros(),
+            fingertip_force_n: [0.0; 5],
+        }
+    }
+
+    fn mid() -> Joints {
+        let l = HandLimits::shadow().unwrap();
+        (l.lower_rad + l.upper_rad) / 2.0
+    }
+
+    #[test]
+    fn efforts_are_capped_and_runaways_and_limit_pushes_cut() {
+        let mut s = safety();
+        let out = s.step(
+            0.0,
+            Some(&HandCommand::Effort(Joints::repeat(10.0))),
+            Some(&state(mid(), Joints::zeros())),
+        );
+        let Some(HandCommand::Effort(tau)) = out else {
+            panic!("{out:?}")
+        };
+        assert!(tau.iter().all(|t| (*t - 2.0).abs() < 1e-12), "{tau}");
+        assert_eq!(s.counters().get(Intervention::Effort), 1);
+        // At the upper limit, pushing further out is removed; pulling back is kept.
+        let mut q = mid();
+        q[1] = s.limits().upper_rad[1];
+        let mut cmd = Joints::repeat(0.5);
+        cmd[2] = -0.5;
+        let out = s.step(
+            DT,
+            Some(&HandCommand::Effort(cmd)),
+            Some(&state(q, Joints::zeros())),
+        );
+        let Some(HandCommand::Effort(tau)) = out else {
+            panic!()
+        };
+        assert_eq!(tau[1], 0.0);
+        assert_eq!(tau[2], -0.5);
+        // A joint already above 1.5x its speed limit gets no effort along its motion.
+        let mut qd = Joints::zeros();
+        qd[4] = 3.5;
+        let out = s.step(
+            2.0 * DT,
+            Some(&HandCommand::Effort(Joints::repeat(0.5))),
+            Some(&state(mid(), qd)),
+        );
+        let Some(HandCommand::Effort(tau)) = out else {
+            panic!()
+        };
+        assert_eq!(tau[4], 0.0);
+        assert_eq!(tau[5], 0.5);
+        assert!(s.counters().get(Intervention::Velocity) >= 1);
+    }
+
+    #[test]
+    fn position_targets_are_clamped_and_rate_limited() {
+        let mut s = safety();
+        let q = mid();
+        let far = Joints::repeat(10.0);
+        let out = s.step(
+            0.0,
+            Some(&HandCommand::Position(far)),
+            Some(&state(q, Joints::zeros())),
+        );
+        let Some(HandCommand::Position(t)) = out else {
+            panic!()
+        };
+        // One step of at most 2 rad/s x 0.05 s (the first step assumes max_dt).
+        assert!((t - q).amax() <= 4.0 * 0.05 + 1e-12);
+        for k in 1..2000 {
+            s.step(
+                f64::from(k) * DT,
+                Some(&HandCommand::Position(far)),
+                Some(&state(q, Joints::zeros())),
+            );
+        }
+        let out = s.step(
+            4.0,
+            Some(&HandCommand::Position(far)),
+            Some(&state(q, Joints::zeros())),
+        );
+        let Some(HandCommand::Position(t)) = out else {
+            panic!()
+        };
+        assert_eq!(t, s.limits().upper_rad);
+    }
+
+    #[test]
+    fn stale_commands_hold_the_posture_and_nothing_is_sent_before_any() {
+        let mut s = safety();
+        let q = mid();
+        assert_eq!(s.step(0.0, None, Some(&state(q, Joints::zeros()))), None);
+        s.step(
+            0.0,
+            Some(&HandCommand::Effort(Joints::repeat(0.3))),
+            Some(&state(q, Joints::zeros())),
+        );
+        let mut moved = q;
+        moved[0] += 0.05;
+        let out = s.step(0.2, None, Some(&state(moved, Joints::zeros())));
+        assert_eq!(out, Some(HandCommand::Position(moved)));
+        // The hold stays where it began.
+        let out = s.step(0.3, None, Some(&state(q, Joints::zeros())));
+        assert_eq!(out, Some(HandCommand::Position(moved)));
+        assert_eq!(s.counters().get(Intervention::Timeout), 2);
+        // A NaN command is refused and counted.
+        let mut nan = Joints::repeat(0.1);
+        nan[3] = f64::NAN;
+        s.step(
+            0.31,
+            Some(&HandCommand::Effort(nan)),
+            Some(&state(q, Joints::zeros())),
+        );
+        assert_eq!(s.counters().get(Intervention::NonFinite), 1);
+    }
+}
