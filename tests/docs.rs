@@ -37,3 +37,18 @@ fn readme_names_the_two_commands() {
         ".ci/run must call the README's test command"
     );
 }
+
+#[test]
+fn architecture_md_lists_the_node_table() {
+    const BEGIN: &str =
+        "<!-- node-table:begin (generated from teleop_interfaces::nodes::markdown_table) -->\n";
+    const END: &str = "<!-- node-table:end -->";
+    let text = std::fs::read_to_string(repo_root().join("docs/architecture.md")).unwrap();
+    let start = text.find(BEGIN).expect("begin marker") + BEGIN.len();
+    let end = text.find(END).expect("end marker");
+    assert_eq!(
+        &text[start..end],
+        teleop_interfaces::nodes::markdown_table(),
+        "docs/architecture.md's node table is out of date"
+    );
+}

@@ -1,8 +1,8 @@
 //! Evidence (thesis Figs. 8.8-8.11): grasping the cup and a load pushing the grasped
 //! thumb open (the screw-pouring stand-in), under position, fixed-gain and adaptive
 //! control at 1 kHz on the simulated hand. Prints the figures
-//! (`cargo test --release -p teleop-remote-site --test scenario_grasp -- --nocapture`);
-//! `cargo run --release -p teleop-remote-site --example hand_scenarios` plots them.
+//! (`cargo test --release --workspace --test scenario_grasp -- --nocapture`);
+//! `cargo run --release -p teleop-system-tests --example hand_scenarios` plots them.
 #![allow(clippy::unwrap_used)]
 
 use teleop_control::hand::{HandControllerConfig, HandMode};

@@ -3,7 +3,7 @@
 //! per-trial perturbation); the hand controller runs at 1 kHz on the simulated joints
 //! in position, fixed-gain impedance and adaptive modes, with the same 2 N m effort
 //! limit in the controller and the simulated motors; 10 trials per mode. Prints the
-//! figures (`cargo test --release -p teleop-remote-site --test scenario_touching -- --nocapture`).
+//! figures (`cargo test --release --workspace --test scenario_touching -- --nocapture`).
 #![allow(clippy::unwrap_used)]
 
 use teleop_control::hand::{HandControllerConfig, HandMode, PerJoint};

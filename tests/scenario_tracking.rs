@@ -99,6 +99,24 @@ fn run(
         let palm = chain.end_pose(&w.arm_position_rad());
         errors.push((palm.translation.vector - expected).norm());
     }
+    // The safety layer does not change the controller's commands in normal operation:
+    // the controller's own Cartesian limit (0.2 m/s) stays under the layer's cap.
+    let c = arm.safety().counters();
+    assert_eq!(
+        c.get(teleop_hardware::safety::Intervention::ToolSpeed),
+        0,
+        "{c:?}"
+    );
+    assert_eq!(
+        c.get(teleop_hardware::safety::Intervention::Velocity),
+        0,
+        "{c:?}"
+    );
+    println!(
+        "  hardware safety layer: {} commands, acceleration limited in {} periods",
+        c.commands,
+        c.get(teleop_hardware::safety::Intervention::Acceleration)
+    );
     let n = errors.len() as f64;
     Figures {
         mean_mm: errors.iter().sum::<f64>() / n * 1e3,

@@ -1,14 +1,17 @@
 //! One PR2 arm controller step (filters + IK + velocity law + joint limiter) while the
 //! operator moves, at 30 Hz and at 1 kHz control rates; the baseline in the same run is
-//! the IK solve alone on the same targets.
+//! the IK solve alone on the same targets. Also the hardware safety layer's step on the
+//! controller's commands (what `remote_sim` adds per period).
 //!
-//! `cargo bench -p teleop-remote-site --bench arm_step`
+//! `cargo bench --workspace --bench arm_step`
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::time::Instant;
 
 use nalgebra::{Isometry3, SVector, Translation3, UnitQuaternion};
+use teleop_hardware::ArmCommand;
+use teleop_hardware::safety::ArmSafety;
 use teleop_ik::{Goal, IkSettings, Solver};
 use teleop_kinematics::robots;
 use teleop_remote_site::arm_controller::ArmState;
@@ -43,6 +46,12 @@ fn run(rate_hz: f64, steps: usize) {
     );
     let mut t_ctrl = Vec::with_capacity(steps);
     let mut t_ik = Vec::with_capacity(steps);
+    let mut t_safety = Vec::with_capacity(steps);
+    let mut safety = ArmSafety::new(
+        robots::pr2_arm_chain().unwrap(),
+        teleop_remote_site::sim_node::SimSafetyConfig::default().arm,
+    )
+    .unwrap();
     let mut q_ik = q;
     for k in 0..steps {
         let t = k as f64 * dt;
@@ -99,20 +108,26 @@ fn run(rate_hz: f64, steps: usize) {
                 Err(e) => e.best.q,
             };
         }
-        q += out.command.velocity_rad_s * dt;
+        let command: ArmCommand<7> = out.command;
+        let t0 = Instant::now();
+        let limited = safety.step(t, Some(&command), Some(&state));
+        t_safety.push(t0.elapsed().as_secs_f64() * 1e6);
+        q += limited.velocity_rad_s * dt;
     }
     println!(
-        "| {rate_hz} Hz | {steps} | {:.2} us | {:.2} us | {:.2} us | {:.2} us |",
+        "| {rate_hz} Hz | {steps} | {:.2} us | {:.2} us | {:.2} us | {:.2} us | {:.2} us | {:.2} us |",
         pct(&mut t_ctrl, 0.5),
         pct(&mut t_ctrl, 0.99),
         pct(&mut t_ik, 0.5),
-        pct(&mut t_ik, 0.99)
+        pct(&mut t_ik, 0.99),
+        pct(&mut t_safety, 0.5),
+        pct(&mut t_safety, 0.99)
     );
 }
 
 fn main() {
     println!(
-        "| control rate | steps | controller step p50 | p99 | IK alone p50 | p99 |\n|---|---|---|---|---|---|"
+        "| control rate | steps | controller step p50 | p99 | IK alone p50 | p99 | hardware safety step p50 | p99 |\n|---|---|---|---|---|---|---|---|"
     );
     run(30.0, 3_000);
     run(1000.0, 20_000);

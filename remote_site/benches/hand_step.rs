@@ -4,7 +4,10 @@
 //! recorded from the simulated hand closing on the cup (so contacts, errors and
 //! adaptation are realistic).
 //!
-//! `cargo bench -p teleop-remote-site --bench hand_step`
+//! Also the hardware safety layer's step on the supervisor's commands (what
+//! `remote_sim` adds per period).
+//!
+//! `cargo bench --workspace --bench hand_step`
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
@@ -14,6 +17,7 @@ use nalgebra::SVector;
 use teleop_control::OperatorSample;
 use teleop_control::hand::{HandControllerConfig, HandMode, ShadowHandController};
 use teleop_hardware::HandState;
+use teleop_hardware::safety::{HandLimits, HandSafety, HandSafetyConfig};
 use teleop_interfaces::joints::SHADOW_FINGER_JOINTS as FINGER_JOINTS;
 use teleop_msgs::JointState;
 use teleop_remote_site::hand_controller::{HandSupervisor, HandSupervisorConfig};
@@ -57,6 +61,9 @@ fn main() {
         })
         .unwrap();
         let (mut t_sup, mut t_target, mut t_bare) = (Vec::new(), Vec::new(), Vec::new());
+        let mut t_safety = Vec::new();
+        let mut safety =
+            HandSafety::new(HandLimits::shadow().unwrap(), HandSafetyConfig::default()).unwrap();
         for (k, s) in states.iter().enumerate() {
             let t = k as f64 * DT;
             let t0 = Instant::now();
@@ -71,7 +78,10 @@ fn main() {
             let t0 = Instant::now();
             let out = sup.step(t, enable, true, s, Some(&arm));
             t_sup.push(t0.elapsed().as_secs_f64() * 1e6);
-            std::hint::black_box(out);
+            let t0 = Instant::now();
+            let limited = safety.step(t, Some(&out.command), Some(s));
+            t_safety.push(t0.elapsed().as_secs_f64() * 1e6);
+            std::hint::black_box((out, limited));
             let t0 = Instant::now();
             let out = bare.step(DT, &s.position_rad, &s.velocity_rad_s, &target);
             t_bare.push(t0.elapsed().as_secs_f64() * 1e6);
@@ -87,6 +97,7 @@ fn main() {
                 &mut t_sup,
             ),
             ("target message check (by name, limits)", &mut t_target),
+            ("hardware safety step (remote_sim)", &mut t_safety),
             ("baseline: bare adaptive law", &mut t_bare),
         ] {
             println!(

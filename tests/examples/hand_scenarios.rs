@@ -6,30 +6,41 @@
 //! * `thumb_load.png` / `.csv`: the screw-pouring stand-in (-0.3 N m on THJ4 from 3 s,
 //!   ramped over 2 s) under fixed-gain and adaptive control: THJ4 error and effort.
 //!
-//! `cargo run --release -p teleop-remote-site --example hand_scenarios`
+//! `cargo run --release -p teleop-system-tests --example hand_scenarios`
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
+use plotters::prelude::*;
 use teleop_control::hand::{HandControllerConfig, HandMode};
 use teleop_hardware::FINGERTIPS;
 use teleop_sim::{ExternalLoad, LoadTarget};
 use teleop_system_tests::scenarios::{GraspRun, GraspSample, grasp_run};
 
-const MODES: [(HandMode, &str); 3] = [
-    (HandMode::Position, "position"),
-    (HandMode::FixedImpedance, "fixed_impedance"),
-    (HandMode::Adaptive, "adaptive"),
+/// Control modes: the CSV's name and the plot's title.
+const MODES: [(HandMode, &str, &str); 3] = [
+    (HandMode::Position, "position", "position control"),
+    (
+        HandMode::FixedImpedance,
+        "fixed_impedance",
+        "fixed-gain impedance",
+    ),
+    (HandMode::Adaptive, "adaptive", "adaptive impedance"),
 ];
-/// Fingertip colours: ff red, mf orange, rf green, lf blue, th purple.
-const FINGER_COLOURS: [[u8; 3]; 5] = [
-    [214, 39, 40],
-    [255, 127, 14],
-    [44, 160, 44],
-    [31, 119, 180],
-    [148, 103, 189],
+/// Fingertips in `fingertip_force_n` order, with their colours: ff red, mf orange,
+/// rf green, lf blue, th purple.
+const FINGERS: [(&str, RGBColor); FINGERTIPS] = [
+    ("ff (first)", RGBColor(214, 39, 40)),
+    ("mf (middle)", RGBColor(255, 127, 14)),
+    ("rf (ring)", RGBColor(44, 160, 44)),
+    ("lf (little)", RGBColor(31, 119, 180)),
+    ("th (thumb)", RGBColor(148, 103, 189)),
 ];
+/// Torque of the thumb load, N m on THJ4.
+const THUMB_LOAD_NM: f64 = -0.3;
+/// Time axis of every panel, s.
+const T_MAX_S: f64 = 9.0;
 
 fn main() -> anyhow::Result<()> {
     let dir = std::env::args()
@@ -39,7 +50,7 @@ fn main() -> anyhow::Result<()> {
 
     // Cup grasp, no load.
     let mut grasp = Vec::new();
-    for (mode, _) in MODES {
+    for (mode, _, _) in MODES {
         let cfg = HandControllerConfig {
             mode,
             ..HandControllerConfig::default()
@@ -47,7 +58,7 @@ fn main() -> anyhow::Result<()> {
         grasp.push(grasp_run(&GraspRun::default(), &cfg)?);
     }
     let mut csv = String::from("mode,time_s,ff_n,mf_n,rf_n,lf_n,th_n\n");
-    for ((_, name), run) in MODES.iter().zip(&grasp) {
+    for ((_, name, _), run) in MODES.iter().zip(&grasp) {
         for s in run {
             let f = s.fingertip_force_n;
             writeln!(
@@ -63,31 +74,44 @@ fn main() -> anyhow::Result<()> {
         .flatten()
         .flat_map(|s| s.fingertip_force_n)
         .fold(1.0, f64::max);
-    let panels: Vec<Panel> = grasp
+    let panels: Vec<Panel> = MODES
         .iter()
-        .map(|run| Panel {
-            y_max: nice(y_max),
-            y_min: 0.0,
-            lines: (0..5)
-                .map(|f| Line {
-                    colour: FINGER_COLOURS[f],
+        .zip(&grasp)
+        .map(|((_, _, title), run)| Panel {
+            title: format!("Cup grasp, {title}: fingertip contact forces"),
+            y_desc: "contact force (N)",
+            y_range: (0.0, headroom(y_max)),
+            series: FINGERS
+                .iter()
+                .enumerate()
+                .map(|(f, (label, colour))| Series {
+                    label: (*label).to_owned(),
+                    colour: *colour,
                     points: run
                         .iter()
                         .map(|s| (s.time_s, s.fingertip_force_n[f]))
                         .collect(),
                 })
                 .collect(),
+            marker: None,
         })
         .collect();
     let grasp_png = dir.join("cup_grasp_force.png");
-    plot(&grasp_png, 9.0, &panels)?;
+    plot(&grasp_png, &panels)?;
 
     // Thumb under load.
     let mut load = ExternalLoad::screw_pouring(3.0);
     load.target = LoadTarget::JointTorque {
         joint: "rh_THJ4".into(),
-        torque_nm: -0.3,
+        torque_nm: THUMB_LOAD_NM,
     };
+    let load_marker = (
+        load.start_s,
+        format!(
+            "load {THUMB_LOAD_NM} N m on THJ4 from {} s ({} s ramp)",
+            load.start_s, load.ramp_s
+        ),
+    );
     let mut run = GraspRun::default();
     run.cup.loads = vec![load];
     let mut loaded: Vec<Vec<GraspSample>> = Vec::new();
@@ -112,12 +136,17 @@ fn main() -> anyhow::Result<()> {
         }
     }
     write(&dir.join("thumb_load.csv"), csv.as_bytes())?;
-    let colours = [[214, 39, 40], [31, 119, 180]]; // fixed red, adaptive blue
-    let series = |f: &dyn Fn(&GraspSample) -> f64| -> Vec<Line> {
+    // Fixed gain red, adaptive blue.
+    let styles = [
+        ("fixed-gain impedance", RGBColor(214, 39, 40)),
+        ("adaptive impedance", RGBColor(31, 119, 180)),
+    ];
+    let series = |f: &dyn Fn(&GraspSample) -> f64| -> Vec<Series> {
         loaded
             .iter()
-            .zip(colours)
-            .map(|(r, colour)| Line {
+            .zip(styles)
+            .map(|(r, (label, colour))| Series {
+                label: label.to_owned(),
                 colour,
                 points: r.iter().map(|s| (s.time_s, f(s))).collect(),
             })
@@ -125,30 +154,37 @@ fn main() -> anyhow::Result<()> {
     };
     let err = series(&|s| (s.joint_target_rad - s.joint_rad).abs());
     let effort = series(&|s| s.joint_effort_nm);
-    let max_of = |ls: &[Line]| {
-        ls.iter()
+    let range_of = |ls: &[Series]| {
+        let (lo, hi) = ls
+            .iter()
             .flat_map(|l| l.points.iter().map(|p| p.1))
-            .fold(1e-6, f64::max)
+            .fold((0.0, 1e-6), |(lo, hi), v| {
+                (f64::min(lo, v), f64::max(hi, v))
+            });
+        (if lo < 0.0 { -headroom(-lo) } else { 0.0 }, headroom(hi))
     };
     let panels = vec![
         Panel {
-            y_min: 0.0,
-            y_max: nice(max_of(&err)),
-            lines: err,
+            title: "Thumb under load: THJ4 position error".to_owned(),
+            y_desc: "|THJ4 error| (rad)",
+            y_range: range_of(&err),
+            series: err,
+            marker: Some(load_marker.clone()),
         },
         Panel {
-            y_min: 0.0,
-            y_max: nice(max_of(&effort)),
-            lines: effort,
+            title: "Thumb under load: THJ4 motor effort".to_owned(),
+            y_desc: "THJ4 effort (N m)",
+            y_range: range_of(&effort),
+            series: effort,
+            marker: Some(load_marker),
         },
     ];
     let load_png = dir.join("thumb_load.png");
-    plot(&load_png, 9.0, &panels)?;
+    plot(&load_png, &panels)?;
     println!(
-        "wrote {} and {} (+ .csv); fingertip colours {:?} = red, orange, green, blue, purple",
+        "wrote {} and {} (+ .csv)",
         grasp_png.display(),
-        load_png.display(),
-        FINGERTIPS
+        load_png.display()
     );
     Ok(())
 }
@@ -157,147 +193,101 @@ fn write(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
     std::fs::write(path, bytes).with_context(|| format!("writing {}", path.display()))
 }
 
-/// The next "nice" axis maximum (1, 2, 2.5, 5 x 10^k) at or above `x`.
+/// The next "nice" axis maximum (1, 1.2, 1.5, 2, 2.5, 3, 4, 5, 6, 8 x 10^k) at or above
+/// `x`.
 fn nice(x: f64) -> f64 {
     let p = 10f64.powf(x.log10().floor());
-    [1.0, 2.0, 2.5, 5.0, 10.0]
+    [1.0, 1.2, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0, 10.0]
         .iter()
         .map(|m| m * p)
         .find(|v| *v >= x)
         .unwrap_or(10.0 * p)
 }
 
-struct Line {
-    colour: [u8; 3],
+/// A nice axis end for data up to `x`, leaving room above the curves for the legend.
+fn headroom(x: f64) -> f64 {
+    nice(1.6 * x)
+}
+
+/// One curve of a panel.
+struct Series {
+    label: String,
+    colour: RGBColor,
     points: Vec<(f64, f64)>,
 }
 
+/// One chart: a quantity over time.
 struct Panel {
-    y_min: f64,
-    y_max: f64,
-    lines: Vec<Line>,
+    title: String,
+    /// The y axis' name with its unit.
+    y_desc: &'static str,
+    y_range: (f64, f64),
+    series: Vec<Series>,
+    /// A moment to mark with a dashed vertical line, s, and its legend entry.
+    marker: Option<(f64, String)>,
 }
 
-const W: usize = 900;
-const PANEL_H: usize = 220;
-const LEFT: usize = 60;
-const RIGHT: usize = 20;
-const TOP: usize = 12;
-const BOTTOM: usize = 24;
+const WIDTH_PX: u32 = 1000;
+const PANEL_HEIGHT_PX: u32 = 330;
+const FONT: &str = teleop_node::plot::FONT_FAMILY;
 
-struct Canvas {
-    w: usize,
-    h: usize,
-    rgb: Vec<u8>,
-}
-
-impl Canvas {
-    fn set(&mut self, x: i64, y: i64, c: [u8; 3]) {
-        if x >= 0 && y >= 0 && (x as usize) < self.w && (y as usize) < self.h {
-            let i = 3 * (y as usize * self.w + x as usize);
-            self.rgb[i..i + 3].copy_from_slice(&c);
+/// Stacked panels sharing the time axis `0..T_MAX_S`, each with a title, labelled axes
+/// and a legend.
+fn plot(path: &Path, panels: &[Panel]) -> anyhow::Result<()> {
+    teleop_node::plot::register_fonts()?;
+    let rows = u32::try_from(panels.len())?;
+    let root = BitMapBackend::new(path, (WIDTH_PX, PANEL_HEIGHT_PX * rows)).into_drawing_area();
+    root.fill(&WHITE)?;
+    for (area, p) in root.split_evenly((panels.len(), 1)).iter().zip(panels) {
+        let (y_min, y_max) = p.y_range;
+        let mut chart = ChartBuilder::on(area)
+            .caption(&p.title, (FONT, 22))
+            .margin(10)
+            .margin_right(20)
+            .x_label_area_size(48)
+            .y_label_area_size(72)
+            .build_cartesian_2d(0.0..T_MAX_S, y_min..y_max)?;
+        chart
+            .configure_mesh()
+            .x_desc("time (s)")
+            .y_desc(p.y_desc)
+            .x_labels(10)
+            .y_labels(6)
+            .x_label_formatter(&teleop_node::plot::tick_label)
+            .y_label_formatter(&teleop_node::plot::tick_label)
+            .label_style((FONT, 15))
+            .axis_desc_style((FONT, 16))
+            .bold_line_style(BLACK.mix(0.15))
+            .light_line_style(BLACK.mix(0.05))
+            .draw()?;
+        if let Some((t, label)) = &p.marker {
+            let grey = RGBColor(110, 110, 110).stroke_width(2);
+            chart
+                .draw_series(DashedLineSeries::new(
+                    [(*t, y_min), (*t, y_max)],
+                    8,
+                    6,
+                    grey,
+                ))?
+                .label(label)
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 22, y)], grey));
         }
+        for s in &p.series {
+            let style = s.colour.stroke_width(2);
+            chart
+                .draw_series(LineSeries::new(s.points.iter().copied(), style))?
+                .label(&s.label)
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 22, y)], style));
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .label_font((FONT, 15))
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK.mix(0.4))
+            .draw()?;
     }
-
-    fn line(&mut self, (x0, y0): (f64, f64), (x1, y1): (f64, f64), c: [u8; 3]) {
-        let n = ((x1 - x0).abs().max((y1 - y0).abs()).ceil() as usize).max(1);
-        for k in 0..=n {
-            let t = k as f64 / n as f64;
-            let (x, y) = (x0 + t * (x1 - x0), y0 + t * (y1 - y0));
-            // 2 px thick.
-            self.set(x.round() as i64, y.round() as i64, c);
-            self.set(x.round() as i64, y.round() as i64 + 1, c);
-        }
-    }
-
-    /// Digits, '.', '-' in a 3x5 font scaled by 2.
-    fn text(&mut self, x: i64, y: i64, s: &str, c: [u8; 3]) {
-        for (k, ch) in s.chars().enumerate() {
-            let glyph: [u8; 5] = match ch {
-                '0' => [7, 5, 5, 5, 7],
-                '1' => [2, 6, 2, 2, 7],
-                '2' => [7, 1, 7, 4, 7],
-                '3' => [7, 1, 7, 1, 7],
-                '4' => [5, 5, 7, 1, 1],
-                '5' => [7, 4, 7, 1, 7],
-                '6' => [7, 4, 7, 5, 7],
-                '7' => [7, 1, 1, 1, 1],
-                '8' => [7, 5, 7, 5, 7],
-                '9' => [7, 5, 7, 1, 7],
-                '.' => [0, 0, 0, 0, 2],
-                '-' => [0, 0, 7, 0, 0],
-                _ => [0; 5],
-            };
-            for (row, bits) in glyph.iter().enumerate() {
-                for col in 0..3 {
-                    if bits & (4 >> col) != 0 {
-                        for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                            self.set(x + 8 * k as i64 + 2 * col + dx, y + 2 * row as i64 + dy, c);
-                        }
-                    }
-                }
-            }
-        }
-    }
-}
-
-fn label(v: f64) -> String {
-    let s = format!("{v:.3}");
-    s.trim_end_matches('0').trim_end_matches('.').to_owned()
-}
-
-/// Stacked panels sharing the time axis `0..t_max` s; grid lines every second and at
-/// quarters of each panel's y range, labelled.
-fn plot(path: &Path, t_max: f64, panels: &[Panel]) -> anyhow::Result<()> {
-    let ph = TOP + PANEL_H + BOTTOM;
-    let mut c = Canvas {
-        w: W,
-        h: ph * panels.len(),
-        rgb: vec![255; 3 * W * ph * panels.len()],
-    };
-    let (grid, axis, ink) = ([225, 225, 225], [90, 90, 90], [40, 40, 40]);
-    let pw = (W - LEFT - RIGHT) as f64;
-    for (k, p) in panels.iter().enumerate() {
-        let y0 = (k * ph + TOP) as f64;
-        let to_px = |t: f64, v: f64| {
-            let fx = (t / t_max).clamp(0.0, 1.0);
-            let fy = ((v - p.y_min) / (p.y_max - p.y_min)).clamp(0.0, 1.0);
-            (LEFT as f64 + fx * pw, y0 + (1.0 - fy) * PANEL_H as f64)
-        };
-        for s in 0..=(t_max as usize) {
-            let (x, _) = to_px(s as f64, 0.0);
-            c.line((x, y0), (x, y0 + PANEL_H as f64), grid);
-            c.text(
-                x as i64 - 3,
-                (y0 + PANEL_H as f64) as i64 + 6,
-                &s.to_string(),
-                ink,
-            );
-        }
-        for q in 0..=4 {
-            let v = p.y_min + (p.y_max - p.y_min) * f64::from(q) / 4.0;
-            let (_, y) = to_px(0.0, v);
-            c.line((LEFT as f64, y), (LEFT as f64 + pw, y), grid);
-            let l = label(v);
-            c.text(LEFT as i64 - 8 - 8 * l.len() as i64, y as i64 - 5, &l, ink);
-        }
-        c.line((LEFT as f64, y0), (LEFT as f64, y0 + PANEL_H as f64), axis);
-        c.line(
-            (LEFT as f64, y0 + PANEL_H as f64),
-            (LEFT as f64 + pw, y0 + PANEL_H as f64),
-            axis,
-        );
-        for l in &p.lines {
-            for w in l.points.windows(2) {
-                c.line(to_px(w[0].0, w[0].1), to_px(w[1].0, w[1].1), l.colour);
-            }
-        }
-    }
-    let file =
-        std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
-    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), W as u32, c.h as u32);
-    enc.set_color(png::ColorType::Rgb);
-    enc.set_depth(png::BitDepth::Eight);
-    enc.write_header()?.write_image_data(&c.rgb)?;
+    root.present()
+        .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }

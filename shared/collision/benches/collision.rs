@@ -10,7 +10,7 @@
 //!   collision-free ones only (every pair must be tried), all colliding pairs,
 //!   minimum distance.
 //!
-//! `cargo bench -p teleop-collision --bench collision`; medians are in
+//! `cargo bench --workspace --bench collision`; medians are in
 //! `$CARGO_TARGET_DIR/criterion/<group>/<name>/new/estimates.json`.
 #![allow(missing_docs, clippy::unwrap_used)]
 

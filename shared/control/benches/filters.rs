@@ -1,6 +1,6 @@
 //! One step of each filter.
 //!
-//! `cargo bench -p teleop-control --bench filters`; medians are in
+//! `cargo bench --workspace --bench filters`; medians are in
 //! `$CARGO_TARGET_DIR/criterion/<group>/<name>/new/estimates.json`.
 #![allow(missing_docs)]
 

@@ -2,7 +2,7 @@
 //! `HandController` with the default configuration. Goal: an adaptive step well below
 //! 10 us (the hand's effort loop runs at 1 kHz).
 //!
-//! `cargo bench -p teleop-control --bench hand`; medians are in
+//! `cargo bench --workspace --bench hand`; medians are in
 //! `$CARGO_TARGET_DIR/criterion/hand_17/<name>/new/estimates.json`.
 #![allow(missing_docs)]
 

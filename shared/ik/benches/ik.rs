@@ -7,8 +7,8 @@
 //! * tracking: a square wrist path with sharp corners and a slow rotation, sampled at
 //!   30 Hz and 1 kHz, each step warm-started from the previous solution.
 //!
-//! `cargo bench -p teleop-ik --bench ik` (full: 10,000 cold targets per robot), or
-//! `cargo bench -p teleop-ik --bench ik -- --quick` (1,000).
+//! `cargo bench --workspace --bench ik` (full: 10,000 cold targets per robot), or
+//! `cargo bench --workspace --bench ik -- --quick` (1,000).
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 

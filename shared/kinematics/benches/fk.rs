@@ -1,7 +1,7 @@
 //! FK and FK + Jacobian per call for each robot, with the `k` crate (openrr) on the
 //! same URDF files and the same configurations side by side.
 //!
-//! `cargo bench -p teleop-kinematics --bench fk`; medians are in
+//! `cargo bench --workspace --bench fk`; medians are in
 //! `$CARGO_TARGET_DIR/criterion/<group>/<name>/new/estimates.json`.
 #![allow(missing_docs)]
 

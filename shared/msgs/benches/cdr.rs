@@ -1,6 +1,6 @@
 //! CDR encode/decode cost of the two hot messages, next to a plain copy of the same
 //! payload bytes (`Vec::clone`, i.e. one allocation + memcpy) so results can be read as
-//! ratios: `cargo bench -p teleop-msgs --bench cdr`.
+//! ratios: `cargo bench --workspace --bench cdr`.
 
 use std::hint::black_box;
 

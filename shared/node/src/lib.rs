@@ -7,6 +7,8 @@
 
 pub mod args;
 pub mod config;
+#[cfg(feature = "plot")]
+pub mod plot;
 pub mod runner;
 pub mod source;
 pub mod status;

@@ -1,7 +1,7 @@
 //! Depth frames of the 40-primitive synthetic hand at 0.4 m, 640x480 and 96x96, with
 //! the brute-force parry3d baseline (every pixel against every shape) in the same run.
 //!
-//! `cargo bench -p teleop-render --bench render -- --warm-up-time 1 --measurement-time 3`
+//! `cargo bench --workspace --bench render -- --warm-up-time 1 --measurement-time 3`
 
 use std::hint::black_box;
 

@@ -8,7 +8,7 @@
 //! plain copy of the same image bytes.
 //!
 //! ```text
-//! cargo bench -p teleop-remote-site --bench sim
+//! cargo bench --workspace --bench sim
 //! ```
 
 use criterion::{Criterion, criterion_group, criterion_main};

@@ -32,7 +32,7 @@
 //! The scene is built once; [`SceneCameras::render`] only moves its shapes
 //! ([`Scene::set_pose`]) and renders into frames kept between calls, so after the first
 //! frame it does not allocate. Both 320x240 views take about 1.3 ms
-//! (`cargo bench -p teleop-remote-site --bench sim`). Deterministic: the same world gives
+//! (`cargo bench --workspace --bench sim`). Deterministic: the same world gives
 //! the same bytes.
 
 use std::f64::consts::{FRAC_PI_2, PI};

@@ -4,7 +4,7 @@
 //! view (x-y, best cell over z) and a side view (x-z, best cell over y), coloured as
 //! in the thesis: blue > 50, green > 20, yellow > 10, red >= 1 orientations.
 //!
-//! `cargo run --release -p teleop-ik --bin reachability_map -- --robot ur5 --out-dir docs/img`
+//! `cargo run --release -p teleop-tools --bin reachability_map -- --robot ur5 --out-dir docs/img`
 
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -12,6 +12,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use clap::{Parser, ValueEnum};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 use teleop_ik::{ColdBudget, Goal, IkSettings, Solver};
 use teleop_kinematics::robots;
 
@@ -119,59 +122,205 @@ fn map<const N: usize>(
     counts
 }
 
-fn class_colour(count: usize) -> [u8; 3] {
-    match count {
-        c if c > 50 => [40, 90, 220],
-        c if c > 20 => [40, 170, 70],
-        c if c > 10 => [235, 200, 40],
-        c if c >= 1 => [220, 50, 40],
-        _ => [245, 245, 245],
-    }
+/// The colour classes of thesis Fig. 7.10, best first: (lowest count, colour, legend).
+const CLASSES: [(usize, RGBColor, &str); 4] = [
+    (51, RGBColor(40, 90, 220), "more than 50"),
+    (21, RGBColor(40, 170, 70), "21 to 50"),
+    (11, RGBColor(235, 200, 40), "11 to 20"),
+    (1, RGBColor(220, 50, 40), "1 to 10"),
+];
+/// Cells where no orientation was reached.
+const NONE_COLOUR: RGBColor = RGBColor(240, 240, 240);
+const FONT: &str = teleop_node::plot::FONT_FAMILY;
+
+fn class_colour(count: usize) -> RGBColor {
+    CLASSES
+        .iter()
+        .find(|(min, _, _)| count >= *min)
+        .map_or(NONE_COLOUR, |(_, colour, _)| *colour)
 }
 
-fn write_png(path: &Path, grid: &Grid, counts: &[usize]) -> anyhow::Result<()> {
+/// One view of the map: cells (centre on the horizontal axis, centre on the vertical
+/// axis, count) on a square grid of `step`.
+struct View {
+    title: &'static str,
+    axes: [&'static str; 2],
+    range: [(f64, f64); 2],
+    cells: Vec<(f64, f64, usize)>,
+}
+
+/// Top view (x-y, best over z) left and side view (x-z, best over y) right, at the
+/// same scale in both axes and both views, with a legend of the colour classes.
+fn write_png(
+    path: &Path,
+    robot: &str,
+    grid: &Grid,
+    counts: &[usize],
+    sampled: usize,
+) -> anyhow::Result<()> {
+    teleop_node::plot::register_fonts()?;
     let [nx, ny, nz] = grid.dims;
-    let cell = 12usize;
-    let gap = 16usize;
-    let width = (nx * 2) * cell + gap;
-    let height = ny.max(nz) * cell;
-    let mut img = vec![255u8; width * height * 3];
-    let mut put = |x0: usize, y0: usize, c: [u8; 3]| {
-        for y in y0..y0 + cell {
-            for x in x0..x0 + cell {
-                let o = (y * width + x) * 3;
-                if o + 2 < img.len() {
-                    img[o..o + 3].copy_from_slice(&c);
-                }
-            }
-        }
-    };
     let at = |i: usize, j: usize, k: usize| counts[(k * ny + j) * nx + i];
-    // Top view: x to the right, y up; best over z.
+    let half = grid.step / 2.0;
+    let span = |axis: usize, n: usize| {
+        (
+            grid.min[axis] - half,
+            grid.min[axis] + (n as f64 - 1.0) * grid.step + half,
+        )
+    };
+    let mut top = View {
+        title: "Top view (x-y), best cell over z",
+        axes: ["x (m)", "y (m)"],
+        range: [span(0, nx), span(1, ny)],
+        cells: Vec::with_capacity(nx * ny),
+    };
     for j in 0..ny {
         for i in 0..nx {
             let best = (0..nz).map(|k| at(i, j, k)).max().unwrap_or(0);
-            put(i * cell, (ny - 1 - j) * cell, class_colour(best));
+            let p = grid.point(i, j, 0);
+            top.cells.push((p.x, p.y, best));
         }
     }
-    // Side view: x to the right, z up; best over y.
+    let mut side = View {
+        title: "Side view (x-z), best cell over y",
+        axes: ["x (m)", "z (m)"],
+        range: [span(0, nx), span(2, nz)],
+        cells: Vec::with_capacity(nx * nz),
+    };
     for k in 0..nz {
         for i in 0..nx {
             let best = (0..ny).map(|j| at(i, j, k)).max().unwrap_or(0);
-            put(
-                nx * cell + gap + i * cell,
-                (ny.max(nz) - 1 - k) * cell,
-                class_colour(best),
-            );
+            let p = grid.point(i, 0, k);
+            side.cells.push((p.x, p.z, best));
         }
     }
-    let file =
-        std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
-    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), width as u32, height as u32);
-    enc.set_color(png::ColorType::Rgb);
-    enc.set_depth(png::BitDepth::Eight);
-    let mut w = enc.write_header()?;
-    w.write_image_data(&img)?;
+
+    let root = BitMapBackend::new(path, (1400, 780)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let root = root.margin(8, 0, 0, 0).titled(
+        &format!(
+            "{robot} reachability map: orientations reached out of {sampled} per position, \
+             {} m grid",
+            grid.step
+        ),
+        (FONT, 26),
+    )?;
+    let (charts, legend) = root.split_vertically(root.dim_in_pixel().1.saturating_sub(50));
+    let (left, right) = charts.split_horizontally(charts.dim_in_pixel().0 / 2);
+    let views = [(left, top), (right, side)];
+    // Titles first, then one scale (pixels per metre) that fits both views.
+    let (x_label_px, y_label_px, margin_px) = (50u32, 70u32, 15u32);
+    let mut titled = Vec::new();
+    for (area, view) in views {
+        titled.push((area.titled(view.title, (FONT, 20))?, view));
+    }
+    let px_per_m = titled
+        .iter()
+        .map(|(area, view)| {
+            let (w, h) = area.dim_in_pixel();
+            let pw = f64::from(w.saturating_sub(y_label_px + 2 * margin_px));
+            let ph = f64::from(h.saturating_sub(x_label_px + 2 * margin_px));
+            let (wx, wy) = (
+                view.range[0].1 - view.range[0].0,
+                view.range[1].1 - view.range[1].0,
+            );
+            f64::min(pw / wx, ph / wy)
+        })
+        .fold(f64::INFINITY, f64::min);
+    for (area, view) in &titled {
+        draw_view(
+            area,
+            view,
+            px_per_m,
+            grid.step,
+            (x_label_px, y_label_px, margin_px),
+        )?;
+    }
+    draw_legend(&legend)?;
+    root.present()
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
+/// One view as a chart whose plotting area is `px_per_m` pixels per metre in both axes,
+/// centred in `area`.
+fn draw_view(
+    area: &DrawingArea<BitMapBackend<'_>, Shift>,
+    view: &View,
+    px_per_m: f64,
+    step: f64,
+    (x_label_px, y_label_px, margin_px): (u32, u32, u32),
+) -> anyhow::Result<()> {
+    let (w, h) = area.dim_in_pixel();
+    let [(x0, x1), (y0, y1)] = view.range;
+    let pw = ((x1 - x0) * px_per_m).round() as u32;
+    let ph = ((y1 - y0) * px_per_m).round() as u32;
+    let spare_w = w.saturating_sub(pw + y_label_px + 2 * margin_px);
+    let spare_h = h.saturating_sub(ph + x_label_px + 2 * margin_px);
+    let mut chart = ChartBuilder::on(area)
+        .margin_left(margin_px + spare_w / 2)
+        .margin_right(margin_px + spare_w - spare_w / 2)
+        .margin_top(margin_px + spare_h / 2)
+        .margin_bottom(margin_px + spare_h - spare_h / 2)
+        .x_label_area_size(x_label_px)
+        .y_label_area_size(y_label_px)
+        .build_cartesian_2d(x0..x1, y0..y1)?;
+    let half = step / 2.0;
+    chart.draw_series(view.cells.iter().map(|&(x, y, count)| {
+        Rectangle::new(
+            [(x - half, y - half), (x + half, y + half)],
+            class_colour(count).filled(),
+        )
+    }))?;
+    chart
+        .configure_mesh()
+        .x_desc(view.axes[0])
+        .y_desc(view.axes[1])
+        .x_label_formatter(&teleop_node::plot::tick_label)
+        .y_label_formatter(&teleop_node::plot::tick_label)
+        .label_style((FONT, 15))
+        .axis_desc_style((FONT, 17))
+        .bold_line_style(BLACK.mix(0.2))
+        .light_line_style(TRANSPARENT)
+        .draw()?;
+    Ok(())
+}
+
+/// The colour classes in a row, centred in `area`.
+fn draw_legend(area: &DrawingArea<BitMapBackend<'_>, Shift>) -> anyhow::Result<()> {
+    let style = TextStyle::from((FONT, 18).into_font()).pos(Pos::new(HPos::Left, VPos::Center));
+    // (swatch colour, text); the heading has no swatch.
+    let entries: Vec<(Option<RGBColor>, &str)> = [(None, "orientations reached:")]
+        .into_iter()
+        .chain(
+            CLASSES
+                .iter()
+                .map(|(_, colour, label)| (Some(*colour), *label)),
+        )
+        .chain([(Some(NONE_COLOUR), "none")])
+        .collect();
+    let (swatch, gap, spacing) = (18i32, 8i32, 32i32);
+    let mut widths = Vec::new();
+    for (colour, label) in &entries {
+        let (w, _) = area.estimate_text_size(label, &style)?;
+        let swatch_w = if colour.is_some() { swatch + gap } else { 0 };
+        widths.push(swatch_w + i32::try_from(w)?);
+    }
+    let total = widths.iter().sum::<i32>() + spacing * (i32::try_from(entries.len())? - 1);
+    let (w, h) = area.dim_in_pixel();
+    let mut x = (i32::try_from(w)? - total) / 2;
+    let y = i32::try_from(h)? / 2;
+    for ((colour, label), width) in entries.iter().zip(widths) {
+        let mut text_x = x;
+        if let Some(colour) = colour {
+            let corners = [(x, y - swatch / 2), (x + swatch, y + swatch / 2)];
+            area.draw(&Rectangle::new(corners, colour.filled()))?;
+            area.draw(&Rectangle::new(corners, BLACK.mix(0.5)))?;
+            text_x += swatch + gap;
+        }
+        area.draw(&Text::new(*label, (text_x, y), style.clone()))?;
+        x += width + spacing;
+    }
     Ok(())
 }
 
@@ -255,7 +404,13 @@ fn main() -> anyhow::Result<()> {
         }
     }
     let png_path = cli.out_dir.join(format!("{name}_reachability.png"));
-    write_png(&png_path, &grid, &counts)?;
+    write_png(
+        &png_path,
+        &name.to_uppercase(),
+        &grid,
+        &counts,
+        rotations.len(),
+    )?;
     println!(
         "{name}: {} positions x {} orientations; >50: {}, >20: {}, >10: {}, >=1: {}, none: {}",
         counts.len(),
