@@ -12,7 +12,7 @@ use teleop_hardware_bus::BusArm;
 use teleop_interfaces::hardware::PR2_ARM;
 use teleop_interfaces::{Site, nodes, topics};
 use teleop_msgs::{Lifecycle, OperatorInput, Pose, PoseStamped};
-use teleop_node::source::{CommanderConfig, Takeover};
+use teleop_node::source::{self, CommanderConfig};
 use teleop_node::{FinalReport, Node, NodeConfig, SourceLock};
 
 use crate::arm_controller::{
@@ -151,12 +151,8 @@ impl Node for ArmNode {
         // Disengaged, a silent commander's lock may go (and, if configured, any lock:
         // the next clutch press may come from another site).
         if !self.ctrl.is_engaged() {
-            self.wrist_sub.release_if_silent(now_s);
-            self.input_sub.release_if_silent(now_s);
-            if self.commander.takeover == Takeover::OnNewEngagement {
-                self.wrist_sub.release();
-                self.input_sub.release();
-            }
+            self.commander
+                .disengaged(now_s, &mut [&mut self.wrist_sub, &mut self.input_sub]);
         }
         if let Some(r) = self.wrist_sub.poll() {
             self.wrist = Some(WristSample {
@@ -182,17 +178,9 @@ impl Node for ArmNode {
             (Some(w), Some(i)) => w.zid != i.zid,
             _ => false,
         };
-        let mut conflict = String::new();
-        for text in [
-            self.wrist_sub.conflict(now_s),
-            self.input_sub.conflict(now_s),
-        ]
-        .into_iter()
-        .flatten()
+        if let Some(conflict) =
+            source::conflict(now_s, &mut [&mut self.wrist_sub, &mut self.input_sub])
         {
-            conflict = text.to_owned();
-        }
-        if !conflict.is_empty() {
             self.last_error = conflict;
         }
         let inputs = ArmInputs {

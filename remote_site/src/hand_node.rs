@@ -13,7 +13,7 @@ use teleop_hardware_bus::{BusArm, BusHand};
 use teleop_interfaces::hardware::{PR2_ARM, SHADOW_HAND};
 use teleop_interfaces::{Site, nodes, topics};
 use teleop_msgs::{JointState, Lifecycle, OperatorInput};
-use teleop_node::source::{CommanderConfig, Takeover};
+use teleop_node::source::{self, CommanderConfig};
 use teleop_node::{FinalReport, Node, NodeConfig, SourceLock};
 
 use crate::arm_node::check_controller_links;
@@ -136,12 +136,8 @@ impl Node for HandNode {
     fn tick(&mut self, now_s: f64) {
         // Holding, a silent commander's lock may go (and, if configured, any lock).
         if self.hand.hold_reason_now().is_some() {
-            self.target_sub.release_if_silent(now_s);
-            self.input_sub.release_if_silent(now_s);
-            if self.commander.takeover == Takeover::OnNewEngagement {
-                self.target_sub.release();
-                self.input_sub.release();
-            }
+            self.commander
+                .disengaged(now_s, &mut [&mut self.target_sub, &mut self.input_sub]);
         }
         if let Some(r) = self.target_sub.poll()
             && let Err(e) = self.hand.accept_target(&r.msg, r.receive_time_s())
@@ -156,14 +152,10 @@ impl Node for HandNode {
                 motion_scale: r.msg.motion_scale,
             });
         }
-        for conflict in [
-            self.target_sub.conflict(now_s),
-            self.input_sub.conflict(now_s),
-        ]
-        .into_iter()
-        .flatten()
+        if let Some(conflict) =
+            source::conflict(now_s, &mut [&mut self.target_sub, &mut self.input_sub])
         {
-            self.last_error = conflict.to_owned();
+            self.last_error = conflict;
         }
         let alive = self
             .operator_site_nodes

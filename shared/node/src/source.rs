@@ -69,6 +69,55 @@ impl CommanderConfig {
     }
 }
 
+impl CommanderConfig {
+    /// What a node does with its command locks in a period where its robot is
+    /// disengaged: a lock whose publisher has been silent for `release_after_s` goes, and
+    /// with [`Takeover::OnNewEngagement`] every lock goes (the next clutch press may come
+    /// from another site).
+    pub fn disengaged(&self, now_s: f64, locks: &mut [&mut dyn CommandLock]) {
+        for lock in locks.iter_mut() {
+            lock.release_if_silent(now_s);
+            if self.takeover == Takeover::OnNewEngagement {
+                lock.release();
+            }
+        }
+    }
+}
+
+/// The part of a [`SourceLock`] a node handles alike for all its command topics.
+pub trait CommandLock {
+    /// See [`SourceLock::release_if_silent`].
+    fn release_if_silent(&mut self, now_s: f64);
+    /// See [`SourceLock::release`].
+    fn release(&mut self);
+    /// See [`SourceLock::conflict`].
+    fn conflict(&mut self, now_s: f64) -> Option<&str>;
+}
+
+impl<T: Message> CommandLock for SourceLock<T> {
+    fn release_if_silent(&mut self, now_s: f64) {
+        SourceLock::release_if_silent(self, now_s);
+    }
+    fn release(&mut self) {
+        SourceLock::release(self);
+    }
+    fn conflict(&mut self, now_s: f64) -> Option<&str> {
+        SourceLock::conflict(self, now_s)
+    }
+}
+
+/// The conflicts of `locks` at `now_s` (each updated), the last one's text if any: what
+/// a node reports as its last error.
+pub fn conflict(now_s: f64, locks: &mut [&mut dyn CommandLock]) -> Option<String> {
+    let mut text = None;
+    for lock in locks.iter_mut() {
+        if let Some(t) = lock.conflict(now_s) {
+            text = Some(t.to_owned());
+        }
+    }
+    text
+}
+
 /// A subscriber locked onto one publisher; see the [module docs](self).
 #[derive(Debug)]
 pub struct SourceLock<T: Message> {
