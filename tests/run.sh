@@ -1,18 +1,21 @@
 #!/usr/bin/env bash
 # The project's test command (README): formatting, lints, and every test, including the
-# interop tests against the independent Python implementation `rosbags`.
+# interop tests against the independent Python implementation `rosbags`, and the hand
+# model test, whose ONNX Runtime library comes from the PyPI `onnxruntime` wheel.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/teleop-target}"
 
-# Python environment for the interop tests (outside the clone, reused between runs).
+# Python environment for the interop tests and ONNX Runtime (outside the clone, reused
+# between runs; the hand-inference crate finds libonnxruntime.so there).
 venv="${TELEOP_VENV:-$HOME/.cache/teleop-venv}"
 if [ ! -x "$venv/bin/python" ]; then
   python3 -m venv "$venv"
 fi
 "$venv/bin/python" -m pip install --quiet --disable-pip-version-check -r tests/interop/requirements.txt
 export TELEOP_PYTHON="$venv/bin/python"
+export TELEOP_VENV="$venv"
 
 echo "== cargo fmt --check"
 cargo fmt --all -- --check

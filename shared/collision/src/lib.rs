@@ -6,6 +6,7 @@ pub mod error;
 pub mod geometry;
 pub mod model;
 pub mod robots;
+pub mod segments;
 pub mod volume;
 
 pub use body::LinkBody;

@@ -1,5 +1,6 @@
 //! Goal-based inverse kinematics for serial chains, in the spirit of bio_ik: a weighted
-//! sum of goals on the chain's tip (pose, position, orientation, direction, look-at),
+//! sum of goals on the chain's tip (pose, position, orientation, direction, look-at) or
+//! on intermediate frames (position, direction),
 //! joint-space regularization toward a reference, and minimum-distance goals, solved by
 //! a bounded Levenberg–Marquardt iteration on fixed-size matrices (no heap use in the
 //! inner loop).
@@ -26,6 +27,8 @@
 //! | [`Goal::Direction`] | `R * axis - direction` | angle between them within tolerance |
 //! | [`Goal::LookAt`] | `R * axis - unit(point - tip)` | angle within tolerance |
 //! | [`Goal::JointRegularization`] | `q - reference` | always (a preference, not a constraint) |
+//! | [`Goal::FramePosition`] | point in frame `k` - target | `|e| <= position_tolerance_m` |
+//! | [`Goal::FrameDirection`] | `R_k * axis - direction` | angle within tolerance |
 //! | [`Goal::MinDistance`] | `max(0, min_distance - d(q))` | `d(q) >= min_distance - position_tolerance_m` |
 //!
 //! Each residual is multiplied by the square root of its weight, so the solver minimizes

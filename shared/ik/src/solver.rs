@@ -50,6 +50,24 @@ pub enum Goal<const N: usize> {
         reference: SVector<f64, N>,
         weight: f64,
     },
+    /// Position of a point fixed in one of the chain's frames: `frame` indexes the
+    /// frames of [`Chain::frames_into`](teleop_kinematics::Chain::frames_into) (the
+    /// moving joints' frames after their motion, `0..N`, then the tip, `N`), `offset`
+    /// is the point in that frame. For goals on intermediate links (a finger's middle
+    /// joint, a forearm).
+    FramePosition {
+        frame: usize,
+        offset: Vector3<f64>,
+        target: Vector3<f64>,
+        weight: f64,
+    },
+    /// Frame `frame`'s `axis` (in that frame) points along `direction` (base frame).
+    FrameDirection {
+        frame: usize,
+        axis: Unit<Vector3<f64>>,
+        direction: Unit<Vector3<f64>>,
+        weight: f64,
+    },
     /// Keep `constraint`'s distance at or above `min_distance_m`.
     MinDistance {
         constraint: Arc<dyn DistanceConstraint<N>>,
@@ -98,6 +116,30 @@ impl<const N: usize> std::fmt::Debug for Goal<N> {
                 .finish(),
             Goal::JointRegularization { weight, .. } => f
                 .debug_struct("JointRegularization")
+                .field("weight", weight)
+                .finish(),
+            Goal::FramePosition {
+                frame,
+                offset,
+                target,
+                weight,
+            } => f
+                .debug_struct("FramePosition")
+                .field("frame", frame)
+                .field("offset", offset)
+                .field("target", target)
+                .field("weight", weight)
+                .finish(),
+            Goal::FrameDirection {
+                frame,
+                axis,
+                direction,
+                weight,
+            } => f
+                .debug_struct("FrameDirection")
+                .field("frame", frame)
+                .field("axis", axis)
+                .field("direction", direction)
                 .field("weight", weight)
                 .finish(),
             Goal::MinDistance {
@@ -177,6 +219,34 @@ impl<const N: usize> Goal<N> {
             Goal::JointRegularization { reference, weight } => {
                 if !reference.iter().all(|v| v.is_finite()) {
                     return Err("regularization reference is not finite");
+                }
+                *weight
+            }
+            Goal::FramePosition {
+                frame,
+                offset,
+                target,
+                weight,
+            } => {
+                if *frame > N || N + 1 > MAX_FRAMES {
+                    return Err("frame index beyond the chain's tip (N)");
+                }
+                if !offset.iter().chain(target.iter()).all(|v| v.is_finite()) {
+                    return Err("frame position goal vectors are not finite");
+                }
+                *weight
+            }
+            Goal::FrameDirection {
+                frame,
+                axis,
+                direction,
+                weight,
+            } => {
+                if *frame > N || N + 1 > MAX_FRAMES {
+                    return Err("frame index beyond the chain's tip (N)");
+                }
+                if !axis.iter().chain(direction.iter()).all(|v| v.is_finite()) {
+                    return Err("frame direction goal vectors are not finite");
                 }
                 *weight
             }
@@ -324,6 +394,14 @@ pub struct Solver<const N: usize> {
     lower: SVector<f64, N>,
     upper: SVector<f64, N>,
     settings: IkSettings,
+}
+
+/// Most frames a chain may have for frame goals and distance constraints (N + 1).
+const MAX_FRAMES: usize = 32;
+
+/// The chain's frames at one joint vector, for frame goals.
+struct Frames {
+    frames: [Isometry3<f64>; MAX_FRAMES],
 }
 
 /// Range used to sample continuous (unbounded) joints in cold mode.
@@ -553,6 +631,7 @@ impl<const N: usize> Solver<N> {
         };
         let tol_p = self.settings.position_tolerance_m;
         let tol_a = self.settings.orientation_tolerance_rad;
+        let frames = self.frames_if_needed(goals, q);
         let add3 = |e: &mut Eval<N>, w: f64, res: Vector3<f64>, j: &SMatrix<f64, 3, N>| {
             e.cost += w * res.norm_squared();
             if with_system {
@@ -622,6 +701,36 @@ impl<const N: usize> Solver<N> {
                         e.g += res * *weight;
                     }
                 }
+                Goal::FramePosition {
+                    frame,
+                    offset,
+                    target,
+                    weight,
+                } => {
+                    if let Some(f) = &frames {
+                        let point = f.frames[*frame] * nalgebra::Point3::from(*offset);
+                        let ep = point.coords - target;
+                        let (jv_k, _) = self.frame_jacobian(f, *frame, &point.coords);
+                        add3(&mut e, *weight, ep, &jv_k);
+                        e.satisfied &= ep.norm() <= tol_p;
+                    }
+                }
+                Goal::FrameDirection {
+                    frame,
+                    axis,
+                    direction,
+                    weight,
+                } => {
+                    if let Some(f) = &frames {
+                        let fk = &f.frames[*frame];
+                        let d = fk.rotation * axis.into_inner();
+                        let res = d - direction.into_inner();
+                        let (_, jw_k) = self.frame_jacobian(f, *frame, &fk.translation.vector);
+                        let j = -skew(&d) * jw_k;
+                        add3(&mut e, *weight, res, &j);
+                        e.satisfied &= angle_between(&d, direction) <= tol_a;
+                    }
+                }
                 Goal::MinDistance {
                     constraint,
                     min_distance_m,
@@ -650,9 +759,50 @@ impl<const N: usize> Solver<N> {
         e
     }
 
+    /// The chain's frames at `q` when some goal needs them.
+    fn frames_if_needed(&self, goals: &[Goal<N>], q: &SVector<f64, N>) -> Option<Frames> {
+        let needed = goals
+            .iter()
+            .any(|g| matches!(g, Goal::FramePosition { .. } | Goal::FrameDirection { .. }));
+        if !needed || N + 1 > MAX_FRAMES {
+            return None;
+        }
+        let mut f = Frames {
+            frames: [Isometry3::identity(); MAX_FRAMES],
+        };
+        self.chain
+            .chain()
+            .frames_into(q.as_slice(), &mut f.frames[..=N])
+            .ok()?;
+        Some(f)
+    }
+
+    /// Linear (of `point`, base frame) and angular Jacobians of frame `k`: the joints
+    /// up to `k` move it, the others do not.
+    fn frame_jacobian(
+        &self,
+        f: &Frames,
+        k: usize,
+        point: &Vector3<f64>,
+    ) -> (SMatrix<f64, 3, N>, SMatrix<f64, 3, N>) {
+        let mut jv = SMatrix::<f64, 3, N>::zeros();
+        let mut jw = SMatrix::<f64, 3, N>::zeros();
+        for (j, joint) in self.chain.joints().iter().enumerate().take((k + 1).min(N)) {
+            let frame = &f.frames[j];
+            let axis = frame.rotation * joint.axis.into_inner();
+            if joint.prismatic {
+                jv.set_column(j, &axis);
+            } else {
+                jw.set_column(j, &axis);
+                jv.set_column(j, &axis.cross(&(point - frame.translation.vector)));
+            }
+        }
+        (jv, jw)
+    }
+
     fn distance(&self, constraint: &dyn DistanceConstraint<N>, q: &SVector<f64, N>) -> f64 {
-        let mut frames = [Isometry3::identity(); 32];
-        let frames = &mut frames[..(N + 1).min(32)];
+        let mut frames = [Isometry3::identity(); MAX_FRAMES];
+        let frames = &mut frames[..(N + 1).min(MAX_FRAMES)];
         if self
             .chain
             .chain()
@@ -677,6 +827,7 @@ impl<const N: usize> Solver<N> {
         let r = tip.rotation;
         let tol_p = self.settings.position_tolerance_m;
         let tol_a = self.settings.orientation_tolerance_rad;
+        let frames = self.frames_if_needed(goals, &q);
         let mut residuals = Vec::with_capacity(goals.len());
         for (i, goal) in goals.iter().enumerate() {
             let (pos, ang, cost) = match goal {
@@ -726,6 +877,35 @@ impl<const N: usize> Solver<N> {
                 Goal::JointRegularization { reference, weight } => {
                     (0.0, 0.0, weight * (q - reference).norm_squared())
                 }
+                Goal::FramePosition {
+                    frame,
+                    offset,
+                    target,
+                    weight,
+                } => match &frames {
+                    Some(f) => {
+                        let point = f.frames[*frame] * nalgebra::Point3::from(*offset);
+                        let ep = (point.coords - target).norm();
+                        (ep, 0.0, weight * ep * ep)
+                    }
+                    None => (f64::INFINITY, 0.0, f64::INFINITY),
+                },
+                Goal::FrameDirection {
+                    frame,
+                    axis,
+                    direction,
+                    weight,
+                } => match &frames {
+                    Some(f) => {
+                        let d = f.frames[*frame].rotation * axis.into_inner();
+                        (
+                            0.0,
+                            angle_between(&d, direction),
+                            weight * (d - direction.into_inner()).norm_squared(),
+                        )
+                    }
+                    None => (0.0, f64::INFINITY, f64::INFINITY),
+                },
                 Goal::MinDistance {
                     constraint,
                     min_distance_m,

@@ -236,3 +236,106 @@ fn invalid_inputs_are_refused_without_moving() {
         .unwrap_err();
     assert!(matches!(err.kind, FailureKind::InvalidGoal { .. }));
 }
+
+/// Frames of a chain at `q` (joints after motion, then the tip).
+fn frames_of<const N: usize>(s: &Solver<N>, q: &SVector<f64, N>) -> Vec<Isometry3<f64>> {
+    let mut f = vec![Isometry3::identity(); N + 1];
+    s.chain().chain().frames_into(q.as_slice(), &mut f).unwrap();
+    f
+}
+
+#[test]
+fn frame_goals_reach_intermediate_frames() {
+    // PR2 arm: the elbow frame (index 3) and the forearm's direction (frame 4's z) of a
+    // random configuration are reached from another start; the tip is left free.
+    let s = pr2();
+    for seed in 0..20 {
+        let q_true = s.random_q_from_seed(100 + seed);
+        let f = frames_of(&s, &q_true);
+        let offset = Vector3::new(0.01, -0.02, 0.03);
+        let target = (f[3] * nalgebra::Point3::from(offset)).coords;
+        let dir = Unit::new_normalize(f[4].rotation * Vector3::z());
+        let goals = [
+            Goal::FramePosition {
+                frame: 3,
+                offset,
+                target,
+                weight: 1.0,
+            },
+            Goal::FrameDirection {
+                frame: 4,
+                axis: Unit::new_normalize(Vector3::z()),
+                direction: dir,
+                weight: 1.0,
+            },
+        ];
+        let sol = s
+            .solve_cold(&goals, None, seed, ColdBudget::default())
+            .unwrap();
+        let g = frames_of(&s, &sol.q);
+        let reached = (g[3] * nalgebra::Point3::from(offset)).coords;
+        assert!((reached - target).norm() <= 1e-5, "seed {seed}");
+        let d = g[4].rotation * Vector3::z();
+        assert!(d.dot(&dir) > 1.0 - 1e-9, "seed {seed}");
+        assert!(sol.residuals.iter().all(|r| r.satisfied));
+    }
+}
+
+#[test]
+fn frame_goal_on_the_tip_index_works_like_the_tip_goal() {
+    // `frame = N` is the tip: a FramePosition on it behaves like Position.
+    let s = ur5();
+    let q_true = s.random_q_from_seed(5);
+    let tip = s.chain().end_pose(&q_true).translation.vector;
+    let start = s.random_q_from_seed(6);
+    let a = s.solve_tracking(
+        &[Goal::Position {
+            target: tip,
+            weight: 1.0,
+        }],
+        &start,
+    );
+    let b = s.solve_tracking(
+        &[Goal::FramePosition {
+            frame: 6,
+            offset: Vector3::zeros(),
+            target: tip,
+            weight: 1.0,
+        }],
+        &start,
+    );
+    // Both reach the target (the problem is redundant, so rounding differences between
+    // the two Jacobian computations may lead to different joint vectors).
+    let a = a.unwrap();
+    let b = b.unwrap();
+    assert!((a.tip.translation.vector - tip).norm() <= 1e-5);
+    assert!((b.tip.translation.vector - tip).norm() <= 1e-5);
+    assert!(
+        b.iterations <= a.iterations + 3,
+        "{} vs {}",
+        b.iterations,
+        a.iterations
+    );
+}
+
+#[test]
+fn frame_goal_beyond_the_tip_is_refused() {
+    let s = ur5();
+    let q = SVector::<f64, 6>::zeros();
+    let err = s
+        .solve_tracking(
+            &[Goal::FramePosition {
+                frame: 7,
+                offset: Vector3::zeros(),
+                target: Vector3::zeros(),
+                weight: 1.0,
+            }],
+            &q,
+        )
+        .unwrap_err();
+    assert!(matches!(
+        err.kind,
+        FailureKind::InvalidGoal { index: 0, .. }
+    ));
+    assert_eq!(err.best.q, q);
+}

@@ -1,0 +1,221 @@
+//! Finding and loading ONNX Runtime (`libonnxruntime.so`) at run time.
+//!
+//! The library comes from the PyPI `onnxruntime` wheel (it ships
+//! `onnxruntime/capi/libonnxruntime.so.<version>`). Search order, first hit wins:
+//!
+//! 1. the path given by the caller (a node's config);
+//! 2. the environment variable `ORT_DYLIB_PATH` (ort's convention);
+//! 3. the project's Python environment, `$TELEOP_VENV` or `~/.cache/teleop-venv`
+//!    (made by `bash tests/run.sh`, which installs `onnxruntime` there);
+//! 4. an `onnxruntime` package installed for `python3` (asked with `python3 -c`),
+//!    or in the usual site-packages directories.
+//!
+//! When nothing is found, the error lists every place looked at and says how to get
+//! the library. The first successful load wins for the whole process (ONNX Runtime
+//! allows one environment per process).
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use crate::InferenceError;
+
+/// The onnxruntime version the project pins (PyPI wheel) and tests against.
+pub const ONNXRUNTIME_VERSION: &str = "1.32.0";
+
+static ENVIRONMENT: OnceLock<Result<(ort::environment::Environment, PathBuf), String>> =
+    OnceLock::new();
+
+/// Where the library was found and which search steps were tried.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Found {
+    pub path: PathBuf,
+    pub source: &'static str,
+}
+
+/// Searches for `libonnxruntime.so` (see the module docs); `explicit` is step 1.
+///
+/// # Errors
+/// [`InferenceError::RuntimeNotFound`] listing every place looked at, or naming an
+/// explicit/`ORT_DYLIB_PATH` path that does not exist.
+pub fn find(explicit: Option<&Path>) -> Result<Found, InferenceError> {
+    let mut looked = Vec::new();
+    if let Some(p) = explicit {
+        if p.is_file() {
+            return Ok(Found {
+                path: p.to_path_buf(),
+                source: "config",
+            });
+        }
+        return Err(InferenceError::RuntimeNotFound {
+            looked: vec![format!("{} (from the config): no such file", p.display())],
+        });
+    }
+    if let Some(p) = std::env::var_os("ORT_DYLIB_PATH") {
+        let p = PathBuf::from(p);
+        if p.is_file() {
+            return Ok(Found {
+                path: p,
+                source: "ORT_DYLIB_PATH",
+            });
+        }
+        return Err(InferenceError::RuntimeNotFound {
+            looked: vec![format!(
+                "{} (from ORT_DYLIB_PATH): no such file",
+                p.display()
+            )],
+        });
+    }
+    let venv = std::env::var_os("TELEOP_VENV")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache/teleop-venv")));
+    if let Some(venv) = venv {
+        looked.push(format!(
+            "{}/lib/python3*/site-packages/onnxruntime/capi",
+            venv.display()
+        ));
+        if let Some(p) = in_site_packages(&venv.join("lib")) {
+            return Ok(Found {
+                path: p,
+                source: "project environment",
+            });
+        }
+    }
+    looked.push("python3 -c 'import onnxruntime'".to_owned());
+    if let Some(p) = from_python() {
+        return Ok(Found {
+            path: p,
+            source: "python3 onnxruntime package",
+        });
+    }
+    for dir in ["/usr/local/lib", "/usr/lib"] {
+        looked.push(format!(
+            "{dir}/python3*/{{site,dist}}-packages/onnxruntime/capi"
+        ));
+        if let Some(p) = in_site_packages(Path::new(dir)) {
+            return Ok(Found {
+                path: p,
+                source: "system site-packages",
+            });
+        }
+    }
+    Err(InferenceError::RuntimeNotFound { looked })
+}
+
+/// `libonnxruntime.so*` inside `<lib>/python3*/{site,dist}-packages/onnxruntime/capi`.
+fn in_site_packages(lib: &Path) -> Option<PathBuf> {
+    let entries = std::fs::read_dir(lib).ok()?;
+    let mut pythons: Vec<PathBuf> = entries
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with("python3"))
+        })
+        .collect();
+    pythons.sort();
+    pythons.reverse();
+    for py in pythons {
+        for packages in ["site-packages", "dist-packages"] {
+            if let Some(p) = library_in(&py.join(packages).join("onnxruntime/capi")) {
+                return Some(p);
+            }
+        }
+    }
+    None
+}
+
+fn library_in(capi: &Path) -> Option<PathBuf> {
+    let mut libs: Vec<PathBuf> = std::fs::read_dir(capi)
+        .ok()?
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with("libonnxruntime.so"))
+        })
+        .collect();
+    libs.sort();
+    libs.pop()
+}
+
+fn from_python() -> Option<PathBuf> {
+    let out = std::process::Command::new("python3")
+        .args([
+            "-c",
+            "import os, onnxruntime; print(os.path.dirname(onnxruntime.__file__))",
+        ])
+        .stderr(std::process::Stdio::null())
+        .output()
+        .ok()?;
+    if !out.status.success() {
+        return None;
+    }
+    let dir = String::from_utf8(out.stdout).ok()?;
+    library_in(&PathBuf::from(dir.trim()).join("capi"))
+}
+
+/// Loads ONNX Runtime once per process (from `explicit` or the search) and returns
+/// the environment and the library's path. Later calls return the first result.
+///
+/// # Errors
+/// [`InferenceError::RuntimeNotFound`] or [`InferenceError::RuntimeLoad`].
+pub fn environment(
+    explicit: Option<&Path>,
+) -> Result<(&'static ort::environment::Environment, &'static Path), InferenceError> {
+    // A failed search is not cached: the user may install the library and retry.
+    if ENVIRONMENT.get().is_none() {
+        let found = find(explicit)?;
+        let _ = ENVIRONMENT.set(load(&found));
+    }
+    match ENVIRONMENT.get() {
+        Some(Ok((env, path))) => Ok((env, path.as_path())),
+        Some(Err(e)) => Err(InferenceError::RuntimeLoad(e.clone())),
+        None => Err(InferenceError::RuntimeLoad(
+            "ONNX Runtime was not initialised".into(),
+        )),
+    }
+}
+
+fn load(found: &Found) -> Result<(ort::environment::Environment, PathBuf), String> {
+    let builder = ort::init_from(&found.path).map_err(|e| {
+        format!(
+            "{} (found via {}) could not be loaded: {e}; install onnxruntime=={ONNXRUNTIME_VERSION} from PyPI",
+            found.path.display(),
+            found.source
+        )
+    })?;
+    let env = builder
+        .with_name("teleop-hand-inference")
+        .build()
+        .map_err(|e| format!("ONNX Runtime from {}: {e}", found.path.display()))?;
+    tracing::info!(library = %found.path.display(), via = found.source, "ONNX Runtime loaded");
+    Ok((env, found.path.clone()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_missing_explicit_path_is_named() {
+        let err = find(Some(Path::new("/nonexistent/libonnxruntime.so"))).expect_err("missing");
+        let msg = err.to_string();
+        assert!(msg.contains("/nonexistent/libonnxruntime.so"), "{msg}");
+        assert!(msg.contains("pip install onnxruntime"), "{msg}");
+    }
+
+    #[test]
+    fn the_library_is_found_inside_a_wheel_layout() {
+        let root = std::env::temp_dir().join(format!("ort-find-{}", std::process::id()));
+        let capi = root.join("lib/python3.11/site-packages/onnxruntime/capi");
+        std::fs::create_dir_all(&capi).expect("dirs");
+        std::fs::write(capi.join("libonnxruntime.so.1.32.0"), b"").expect("file");
+        std::fs::write(capi.join("other.so"), b"").expect("file");
+        let found = in_site_packages(&root.join("lib")).expect("found");
+        assert!(found.ends_with("libonnxruntime.so.1.32.0"));
+        assert!(in_site_packages(&root.join("nothing")).is_none());
+        let _ = std::fs::remove_dir_all(&root);
+    }
+}
