@@ -164,6 +164,7 @@ def main():
     ap.add_argument("--minutes", type=float, default=30.0, help="training time budget")
     ap.add_argument("--batch", type=int, default=64)
     ap.add_argument("--lr", type=float, default=0.002)
+    ap.add_argument("--beta1", type=float, default=0.5)
     ap.add_argument("--widths", default="24,48,64,128,160", help="encoder widths (5 values)")
     ap.add_argument("--embed", type=int, default=256)
     ap.add_argument("--rotate-deg", type=float, default=15.0)
@@ -182,7 +183,7 @@ def main():
     model = MODELS[args.model](manifest["joint_lower"], manifest["joint_upper"], widths, embed=args.embed)
     params = sum(p.numel() for p in model.parameters())
     print(f"{args.model}: {params / 1e6:.2f} M parameters, {len(train['joints'])} training pairs", flush=True)
-    opt = torch.optim.Adam(model.parameters(), lr=args.lr, betas=(0.5, 0.999))
+    opt = torch.optim.Adam(model.parameters(), lr=args.lr, betas=(args.beta1, 0.999))
     budget = args.minutes * 60
     start = time.monotonic()
     n = len(train["joints"])

@@ -244,3 +244,100 @@ pub fn plot_curves(
 pub fn thresholds() -> [f64; 4] {
     THRESHOLDS_RAD
 }
+
+/// Draws `pairs` dataset examples side by side (human crop above, Shadow crop below,
+/// depth in the cube's normalised units as colour, a colour scale on the right).
+///
+/// # Errors
+/// Font or drawing errors as text.
+pub fn plot_pairs(path: &Path, data: &Loaded, indices: &[usize]) -> Result<(), String> {
+    use plotters::prelude::*;
+    teleop_node::plot::register_fonts().map_err(|e| e.to_string())?;
+    let s = data.manifest.image_size;
+    let cols = indices.len().max(1);
+    let cell = 200u32;
+    let root =
+        BitMapBackend::new(path, (cell * cols as u32 + 120, 2 * cell + 90)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let titled = root
+        .titled(
+            "Paired 96 x 96 crops (axes in pixels): human (top, noisy), Shadow (bottom), same camera-to-palm transform",
+            ("sans-serif", 16),
+        )
+        .map_err(|e| e.to_string())?;
+    let (grid, scale) = titled.split_horizontally(cell * cols as u32 + 10);
+    let colour = |v: f32| -> RGBColor {
+        if v >= 1.0 {
+            return RGBColor(235, 235, 235);
+        }
+        // Viridis, five anchors, linear between them.
+        const ANCHORS: [(f64, f64, f64); 5] = [
+            (68.0, 1.0, 84.0),
+            (59.0, 82.0, 139.0),
+            (33.0, 145.0, 140.0),
+            (94.0, 201.0, 98.0),
+            (253.0, 231.0, 37.0),
+        ];
+        let t = f64::from((v + 1.0) / 2.0).clamp(0.0, 1.0) * 4.0;
+        let i = (t.floor() as usize).min(3);
+        let f = t - i as f64;
+        let (a, b) = (ANCHORS[i], ANCHORS[i + 1]);
+        let mix = |x: f64, y: f64| (x + f * (y - x)).round() as u8;
+        RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+    };
+    let panels = grid.split_evenly((2, cols));
+    for (row, images) in [(0usize, &data.human), (1, &data.robot)] {
+        for (c, idx) in indices.iter().enumerate() {
+            let panel = &panels[row * cols + c];
+            let meta = &data.meta[idx * teleop_hand_dataset::META_COLUMNS.len()..];
+            let caption = if row == 0 {
+                format!("human, {:.2} m, {:.0} deg off-axis", meta[0], meta[1])
+            } else {
+                "Shadow (label)".to_owned()
+            };
+            let mut chart = ChartBuilder::on(panel)
+                .caption(caption, ("sans-serif", 12))
+                .margin(4)
+                .x_label_area_size(18)
+                .y_label_area_size(24)
+                .build_cartesian_2d(0..s as i32, s as i32..0)
+                .map_err(|e| e.to_string())?;
+            chart
+                .configure_mesh()
+                .disable_mesh()
+                .x_labels(3)
+                .y_labels(3)
+                .label_style(("sans-serif", 10))
+                .draw()
+                .map_err(|e| e.to_string())?;
+            let img = &images[idx * s * s..(idx + 1) * s * s];
+            chart
+                .draw_series((0..s * s).map(|i| {
+                    let (x, y) = ((i % s) as i32, (i / s) as i32);
+                    Rectangle::new([(x, y), (x + 1, y + 1)], colour(img[i]).filled())
+                }))
+                .map_err(|e| e.to_string())?;
+        }
+    }
+    // Colour scale: normalised depth -1 (near) .. 1 (far), in mm from the cube centre.
+    let mut bar = ChartBuilder::on(&scale)
+        .caption("depth (mm)", ("sans-serif", 12))
+        .margin(10)
+        .y_label_area_size(40)
+        .build_cartesian_2d(0..1, -125.0..125.0)
+        .map_err(|e| e.to_string())?;
+    bar.configure_mesh()
+        .disable_mesh()
+        .disable_x_axis()
+        .y_desc("from the cube centre")
+        .label_style(("sans-serif", 10))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    bar.draw_series((0..100).map(|i| {
+        let v = -125.0 + 2.5 * f64::from(i);
+        Rectangle::new([(0, v), (1, v + 2.5)], colour((v / 125.0) as f32).filled())
+    }))
+    .map_err(|e| e.to_string())?;
+    root.present().map_err(|e| e.to_string())?;
+    Ok(())
+}

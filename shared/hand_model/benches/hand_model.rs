@@ -29,6 +29,29 @@ fn bench_retarget(c: &mut Criterion) {
     let retargeter = Retargeter::new(RetargetSettings::default()).expect("retargeter");
     let hands = hands(256);
     let mut i = 0;
+    // Reference in the same run: one forward kinematics of the whole Shadow hand with
+    // its 21 keypoints (what checking a retargeted pose costs).
+    let joints = retargeter
+        .retarget(&hands[0], None)
+        .expect("retarget")
+        .joints;
+    c.bench_function("retarget/reference: Shadow FK + keypoints", |b| {
+        b.iter(|| black_box(retargeter.shadow_keypoints(black_box(&joints))));
+    });
+    let no_collision = Retargeter::new(RetargetSettings {
+        collision_passes: 0,
+        ..RetargetSettings::default()
+    })
+    .expect("retargeter");
+    c.bench_function(
+        "retarget/without the self-collision passes (per hand)",
+        |b| {
+            b.iter(|| {
+                i = (i + 1) % hands.len();
+                black_box(no_collision.retarget(&hands[i], None).expect("retarget"))
+            });
+        },
+    );
     c.bench_function("retarget/cold (per hand)", |b| {
         b.iter(|| {
             i = (i + 1) % hands.len();

@@ -38,6 +38,9 @@ struct Args {
     /// Draw the fraction-of-frames curves (first dataset, every model) here.
     #[arg(long)]
     plot: Option<PathBuf>,
+    /// Draw a few pairs of the first dataset here.
+    #[arg(long)]
+    pairs: Option<PathBuf>,
     /// Pairs and seed of the CI check; its thresholds are the first model's measured
     /// values on that set, less `--ci-margin` (fractions) and plus a tenth of it (mean).
     #[arg(long, default_value_t = 300)]
@@ -149,6 +152,16 @@ fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(p) = &args.markdown {
         std::fs::write(p, &md).with_context(|| format!("writing {}", p.display()))?;
+    }
+    if let Some(p) = &args.pairs {
+        let (_, data) = &loaded[0];
+        let picks: Vec<usize> = (0..data.count)
+            .step_by((data.count / 5).max(1))
+            .take(5)
+            .collect();
+        teleop_hand_eval::plot_pairs(p, data, &picks)
+            .map_err(anyhow::Error::msg)
+            .with_context(|| format!("drawing {}", p.display()))?;
     }
     if let Some(p) = &args.plot {
         plot_curves(
