@@ -109,6 +109,11 @@ impl OnnxModel {
         let session = Session::builder(env)
             .and_then(|b| b.with_intra_threads(threads).map_err(Into::into))
             .and_then(|b| b.with_inter_threads(1).map_err(Into::into))
+            // Every graph optimisation, as Python onnxruntime applies by default.
+            .and_then(|b| {
+                b.with_optimization_level(ort::session::builder::GraphOptimizationLevel::All)
+                    .map_err(Into::into)
+            })
             .and_then(|mut b| b.commit_from_file(path))
             .map_err(|e| model_err(format!("cannot load: {e}")))?;
         let inputs = session.inputs();

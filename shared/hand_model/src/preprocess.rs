@@ -218,26 +218,26 @@ pub fn preprocess(
 }
 
 /// 3 x 3 erosion (`erode`) or dilation of a 0/1 mask; outside the window counts as 0.
+/// Separable: a 1 x 3 pass along rows, then a 3 x 1 pass along columns.
 fn morph(src: &[u8], dst: &mut Vec<u8>, w: usize, h: usize, erode: bool) {
+    let op = |a: u8, b: u8| if erode { a & b } else { a | b };
+    let mut rows = vec![0u8; w * h];
+    for (s_row, r_row) in src.chunks_exact(w).zip(rows.chunks_exact_mut(w)) {
+        for x in 0..w {
+            let left = if x > 0 { s_row[x - 1] } else { 0 };
+            let right = if x + 1 < w { s_row[x + 1] } else { 0 };
+            r_row[x] = op(op(left, s_row[x]), right);
+        }
+    }
     dst.clear();
     dst.resize(w * h, 0);
     for y in 0..h {
+        let here = &rows[y * w..(y + 1) * w];
+        let out = &mut dst[y * w..(y + 1) * w];
         for x in 0..w {
-            let mut all = true;
-            let mut any = false;
-            for dy in [-1i64, 0, 1] {
-                for dx in [-1i64, 0, 1] {
-                    let (yy, xx) = (y as i64 + dy, x as i64 + dx);
-                    let v = if yy < 0 || xx < 0 || yy >= h as i64 || xx >= w as i64 {
-                        0
-                    } else {
-                        src[yy as usize * w + xx as usize]
-                    };
-                    all &= v != 0;
-                    any |= v != 0;
-                }
-            }
-            dst[y * w + x] = u8::from(if erode { all } else { any });
+            let up = if y > 0 { rows[(y - 1) * w + x] } else { 0 };
+            let down = if y + 1 < h { rows[(y + 1) * w + x] } else { 0 };
+            out[x] = op(op(up, here[x]), down);
         }
     }
 }

@@ -128,14 +128,18 @@ fn run(args: Args) -> anyhow::Result<()> {
     }
     let (mut e2e, mut pre, mut inf) = (Vec::new(), Vec::new(), Vec::new());
     let mut no_hand = 0;
+    // Three tight loops, each like the Python side's: end to end, preprocessing
+    // alone, inference alone on the stored crops.
     for _ in 0..args.repeat {
-        for (i, f) in frames.iter().enumerate() {
+        for f in &frames {
             let t = std::time::Instant::now();
             let r = estimator.estimate(&f.depth_mm, &f.intrinsics, &f.centre_m)?;
             e2e.push(t.elapsed().as_secs_f64() * 1e3);
             if matches!(r, HandEstimate::NoHand { .. }) {
                 no_hand += 1;
             }
+        }
+        for f in &frames {
             let t = std::time::Instant::now();
             preprocess(
                 &f.depth_mm,
@@ -146,8 +150,9 @@ fn run(args: Args) -> anyhow::Result<()> {
                 &mut crop,
             )?;
             pre.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+        for input in crops.chunks_exact(size * size) {
             let mut out = [0.0f32; 17];
-            let input = &crops[i * size * size..(i + 1) * size * size];
             let t = std::time::Instant::now();
             estimator.model_mut().infer(input, &mut out)?;
             inf.push(t.elapsed().as_secs_f64() * 1e3);
