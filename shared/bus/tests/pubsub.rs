@@ -319,7 +319,13 @@ async fn source_policy_and_lock_refuse_other_publishers() {
         .expect("announced");
     assert_eq!(info.node_name, "node_a");
     assert!(from_other.try_recv().is_none());
-    assert!(from_other.stats().foreign >= 2);
+    // The other subscriber refuses the same samples on its own callback: give it the
+    // time to see them (the probe of `wait_connected` and sample 5).
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(2);
+    while from_other.stats().foreign < 2 && tokio::time::Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    assert!(from_other.stats().foreign >= 2, "{:?}", from_other.stats());
     assert_eq!(from_a.stats().foreign, 0);
     // A second publisher of node a: the lock keeps only the first.
     let second = a.publisher(&topics::SHADOW_JOINT_STATES).await.unwrap();
