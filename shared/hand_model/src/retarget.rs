@@ -11,7 +11,7 @@
 //!   direction (0.2). Keypoint correspondences: MCP = knuckle (thumb: `rh_thbase`,
 //!   the CMC), PIP = middle joint `J2` (thumb: `rh_thpip`, the MCP), DIP = `J1`,
 //!   TIP = `rh_*tip`.
-//! * **Self-collision** (eq. 3.3, `max(0, R_col - |P_i - P_j|)`): after the per-finger
+//! * **Self-collision** (eq. 3.3, `max(0, R_col - ‖P_i - P_j‖)`): after the per-finger
 //!   solves, each finger's phalanges are capsules; a finger closer than `R_col` (the
 //!   sum of the two radii) to another is solved again with a minimum-distance goal
 //!   against the others (weight 1), for a configured number of passes.
