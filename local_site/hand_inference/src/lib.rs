@@ -51,6 +51,8 @@ pub enum InferenceError {
     NonFinite { joint: &'static str },
     #[error(transparent)]
     Input(#[from] teleop_hand_model::HandModelError),
+    #[error("Shadow hand model: {0}")]
+    ShadowModel(String),
 }
 
 /// A network from a preprocessed crop to joint angles.
@@ -334,10 +336,11 @@ impl<M: JointModel> HandEstimator<M> {
     /// size) and the Shadow's joint limits.
     ///
     /// # Errors
-    /// [`InferenceError::Input`] only if the embedded Shadow model were broken.
+    /// [`InferenceError::ShadowModel`] only if the embedded Shadow model were broken.
     pub fn new(model: M) -> Result<Self, InferenceError> {
-        let retargeter = teleop_hand_model::retarget::Retargeter::new(Default::default())?;
-        let (lower, upper) = retargeter.limits();
+        let limits = teleop_hardware::safety::HandLimits::shadow()
+            .map_err(|e| InferenceError::ShadowModel(e.to_string()))?;
+        let (lower, upper) = (limits.lower_rad.into(), limits.upper_rad.into());
         let preprocess = PreprocessConfig {
             size: model.input_size(),
             ..PreprocessConfig::default()

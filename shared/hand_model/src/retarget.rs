@@ -371,6 +371,8 @@ impl Retargeter {
         }
         let mut resolves = 0;
         if self.settings.weights.collision > 0.0 {
+            // Capsules change only when a finger is solved again.
+            let mut segments = self.segments(&joints);
             for _ in 0..self.settings.collision_passes {
                 let mut any = false;
                 // The thumb first: most contacts are the thumb pressing into a finger.
@@ -381,7 +383,6 @@ impl Retargeter {
                     Finger::Ring,
                     Finger::Little,
                 ] {
-                    let segments = self.segments(&joints);
                     if clearance_to_others(&segments, f.index()) >= 0.0 {
                         continue;
                     }
@@ -392,6 +393,7 @@ impl Retargeter {
                         .flat_map(|(_, s)| s.iter().copied())
                         .collect();
                     self.solve_finger(f, &targets[f.index()], Some(others), &mut joints);
+                    segments = self.segments(&joints);
                     resolves += 1;
                     any = true;
                 }

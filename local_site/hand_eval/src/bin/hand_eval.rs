@@ -59,11 +59,7 @@ fn split(s: &str) -> anyhow::Result<(String, PathBuf)> {
 }
 
 fn main() -> anyhow::Result<()> {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
-        )
-        .init();
+    teleop_node::init_tracing();
     run(Args::parse())
 }
 
