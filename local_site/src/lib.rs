@@ -7,4 +7,6 @@
 //! measured against ground truth. A real tracker (PhaseSpace, IMU suit) and a real
 //! pedal box slot in behind the same traits.
 
+pub mod camera_arm;
+pub mod tracking;
 pub mod wrist_tracker;

@@ -16,6 +16,9 @@ use teleop_msgs::{Header, Lifecycle, OperatorInput, Point, Pose, PoseStamped, Qu
 use teleop_node::{FinalReport, Node, NodeConfig, Periodic};
 use teleop_sim::operator::{SimulatedDevices, SimulatedOperator, SimulatedOperatorConfig};
 
+use crate::tracking::bvh::{BvhStreamConfig, BvhStreamTracker};
+use crate::tracking::replay::{ReplayConfig, ReplayTracker};
+
 /// Configuration of the wrist tracker node.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -28,7 +31,10 @@ pub struct WristTrackerConfig {
     pub pose_rate_hz: f64,
     /// Pedal state publishing rate, Hz (also the operator-side heartbeat).
     pub input_rate_hz: f64,
-    /// The simulated operator (the only backend today).
+    /// Where wrist poses come from.
+    pub source: TrackerSource,
+    /// The simulated operator: the pedals and switch (the only panel backend today),
+    /// and the wrist poses when `source` is `simulated`.
     pub operator: SimulatedOperatorConfig,
     pub bus: BusConfig,
 }
@@ -40,6 +46,7 @@ impl Default for WristTrackerConfig {
             frame_id: "tracker".into(),
             pose_rate_hz: topics::WRIST_POSE.spec.rate_hz,
             input_rate_hz: topics::OPERATOR_INPUT.spec.rate_hz,
+            source: TrackerSource::Simulated,
             operator: SimulatedOperatorConfig::default(),
             bus: BusConfig::default(),
         }
@@ -59,7 +66,53 @@ impl NodeConfig for WristTrackerConfig {
                 return Err(format!("{name} must be in (0, 10000] Hz, got {v}"));
             }
         }
+        match &self.source {
+            TrackerSource::Simulated => {}
+            TrackerSource::Replay(r) => r.validate()?,
+            TrackerSource::Bvh(b) => b.validate()?,
+        }
         self.operator.validate()
+    }
+}
+
+/// The wrist pose source, `[source] kind = "..."` in the config.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum TrackerSource {
+    /// The simulated operator's motion capture.
+    Simulated,
+    /// A recorded trajectory (CSV, [`crate::tracking::replay`]).
+    Replay(ReplayConfig),
+    /// The Perception Neuron suit through Axis Neuron's BVH broadcast
+    /// ([`crate::tracking::bvh`]): the palm pose relative to the spine.
+    Bvh(BvhStreamConfig),
+}
+
+impl TrackerSource {
+    /// Opens the source.
+    ///
+    /// # Errors
+    /// A missing or malformed replay or skeleton file, an unknown joint name.
+    pub fn open(
+        &self,
+        operator: &SimulatedOperatorConfig,
+    ) -> anyhow::Result<Box<dyn WristTracker>> {
+        Ok(match self {
+            Self::Simulated => Box::new(SimulatedDevices::new(SimulatedOperator::new(
+                operator.clone(),
+            ))),
+            Self::Replay(r) => Box::new(ReplayTracker::open(r)?),
+            Self::Bvh(b) => Box::new(BvhStreamTracker::start(b)?),
+        })
+    }
+
+    /// A short name for logs.
+    pub fn describe(&self) -> String {
+        match self {
+            Self::Simulated => "simulated operator".into(),
+            Self::Replay(r) => format!("replay of {}", r.path.display()),
+            Self::Bvh(b) => format!("BVH stream from {}", b.address),
+        }
     }
 }
 
@@ -130,14 +183,14 @@ impl std::fmt::Debug for WristTrackerNode {
 }
 
 impl WristTrackerNode {
-    /// The node with the simulated operator's devices (the only backend today).
+    /// The node with the configured pose source and the simulated operator's pedals.
     ///
     /// # Errors
-    /// Bus declarations.
+    /// The source cannot be opened; bus declarations.
     pub async fn new(cfg: &WristTrackerConfig, bus: &Bus) -> anyhow::Result<Self> {
-        let tracker = SimulatedDevices::new(SimulatedOperator::new(cfg.operator.clone()));
+        let tracker = cfg.source.open(&cfg.operator)?;
         let panel = SimulatedDevices::new(SimulatedOperator::new(cfg.operator.clone()));
-        Self::with_devices(cfg, bus, Box::new(tracker), Box::new(panel)).await
+        Self::with_devices(cfg, bus, tracker, Box::new(panel)).await
     }
 
     /// The node with given devices.
@@ -265,7 +318,8 @@ pub async fn run(
     let node = WristTrackerNode::new(&cfg, &bus).await?;
     tracing::info!(
         zid = bus.zid(),
-        "wrist tracker running (simulated operator)"
+        source = cfg.source.describe(),
+        "wrist tracker running"
     );
     teleop_node::run(bus, node, teleop_node::stop_signal(duration)).await
 }
@@ -291,5 +345,48 @@ mod tests {
             ..Default::default()
         };
         assert!(bad.validate().unwrap_err().contains("pose_rate_hz"));
+    }
+
+    #[test]
+    fn sources_parse_from_toml_and_unknown_fields_are_refused() {
+        let cfg: WristTrackerConfig =
+            toml::from_str("[source]\nkind = \"replay\"\npath = \"poses.csv\"\nend = \"loop\"\n")
+                .expect("replay source");
+        assert_eq!(
+            cfg.source,
+            TrackerSource::Replay(ReplayConfig {
+                path: "poses.csv".into(),
+                end: crate::tracking::replay::ReplayEnd::Loop,
+                max_gap_s: 0.1,
+            })
+        );
+        cfg.validate().expect("valid");
+        let bvh: WristTrackerConfig = toml::from_str(
+            "[source]\nkind = \"bvh\"\naddress = \"10.0.0.5:7001\"\nskeleton = \"neuron.bvh\"\n",
+        )
+        .expect("bvh source");
+        let TrackerSource::Bvh(b) = &bvh.source else {
+            panic!("not a BVH source: {:?}", bvh.source);
+        };
+        assert_eq!(b.reference_joint, "Spine3");
+        assert_eq!(b.hand_joint, "RightHand");
+        let typo = toml::from_str::<WristTrackerConfig>(
+            "[source]\nkind = \"replay\"\npath = \"p.csv\"\nmax_gap = 1.0\n",
+        )
+        .expect_err("unknown field");
+        assert!(typo.to_string().contains("max_gap"), "{typo}");
+        let bad_gap: WristTrackerConfig =
+            toml::from_str("[source]\nkind = \"replay\"\npath = \"p.csv\"\nmax_gap_s = -1.0\n")
+                .expect("parses");
+        assert!(bad_gap.validate().unwrap_err().contains("max_gap_s"));
+        let missing = TrackerSource::Replay(ReplayConfig {
+            path: "/nonexistent/poses.csv".into(),
+            end: crate::tracking::replay::ReplayEnd::Stop,
+            max_gap_s: 0.1,
+        })
+        .open(&SimulatedOperatorConfig::default())
+        .err()
+        .expect("missing file");
+        assert!(missing.to_string().contains("/nonexistent/poses.csv"));
     }
 }

@@ -23,6 +23,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+import models
 from models import MODELS, SIZE
 
 # BigHand indices of the 15 keypoints whose neighbourhoods weight the reconstruction
@@ -41,7 +42,17 @@ def load(root):
     return manifest, data
 
 
-def augment(batch, rng, rotate_deg, jitter_px):
+def cpu_has_bf16():
+    """True on x86 CPUs that report AVX512-BF16 or AMX-BF16 (Linux /proc/cpuinfo)."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            flags = f.read()
+    except OSError:
+        return False
+    return "avx512_bf16" in flags or "amx_bf16" in flags
+
+
+def augment(batch, rng, rotate_deg, jitter_px, images=("human", "robot")):
     """Same random in-plane rotation and shift for the human image, the robot image and
     the robot keypoints of each sample. Nearest sampling, background padded with +1."""
     b = batch["human"].shape[0]
@@ -53,7 +64,7 @@ def augment(batch, rng, rotate_deg, jitter_px):
     theta = torch.cat([a, shift[:, :, None]], 2)
     grid = F.affine_grid(theta, (b, 1, SIZE, SIZE), align_corners=False)
     out = dict(batch)
-    for k in ("human", "robot"):
+    for k in images:
         out[k] = F.grid_sample(batch[k] - 1, grid, mode="nearest", padding_mode="zeros", align_corners=False) + 1
     # Keypoints: out = A^-1 (in - t), in normalised coordinates.
     uv = batch["robot_uv"]
@@ -94,6 +105,7 @@ def to_batch(data, idx, device="cpu"):
 @torch.no_grad()
 def evaluate(model, data, batch_size=256):
     model.eval()
+    bf16, models.CONV_BF16 = models.CONV_BF16, False  # measured as exported: float32
     errs = []
     for s in range(0, len(data["joints"]), batch_size):
         idx = np.arange(s, min(s + batch_size, len(data["joints"])))
@@ -101,6 +113,7 @@ def evaluate(model, data, batch_size=256):
         errs.append((model(b["human"]) - b["joints"]).abs())
     e = torch.cat(errs)
     worst = e.amax(1)
+    models.CONV_BF16 = bf16
     model.train()
     return {
         "mean_error_rad": float(e.mean()),
@@ -122,6 +135,8 @@ def export(model, path, manifest, args, metrics):
     import onnx
 
     model.eval()
+    models.CONV_BF16 = False  # the exported graph is float32 throughout
+    model = model.to(memory_format=torch.contiguous_format)
     dummy = torch.zeros(1, 1, SIZE, SIZE)
     torch.onnx.export(
         Exported(model),
@@ -162,7 +177,7 @@ def main():
     ap.add_argument("--val", required=True)
     ap.add_argument("--out", required=True)
     ap.add_argument("--minutes", type=float, default=30.0, help="training time budget")
-    ap.add_argument("--batch", type=int, default=64)
+    ap.add_argument("--batch", type=int, default=128)
     ap.add_argument("--lr", type=float, default=0.002)
     ap.add_argument("--beta1", type=float, default=0.5)
     ap.add_argument("--widths", default="24,48,64,128,160", help="encoder widths (5 values)")
@@ -171,6 +186,12 @@ def main():
     ap.add_argument("--jitter-px", type=float, default=4.0)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
+    ap.add_argument(
+        "--bf16",
+        choices=("auto", "on", "off"),
+        default="auto",
+        help="convolutions in bfloat16 while training (auto: when the CPU has bfloat16 units)",
+    )
     args = ap.parse_args()
 
     torch.manual_seed(args.seed)
@@ -180,9 +201,18 @@ def main():
     manifest, train = load(args.train)
     _, val = load(args.val)
     widths = [int(w) for w in args.widths.split(",")]
+    models.CONV_BF16 = args.bf16 == "on" or (args.bf16 == "auto" and cpu_has_bf16())
     model = MODELS[args.model](manifest["joint_lower"], manifest["joint_upper"], widths, embed=args.embed)
+    if models.CONV_BF16:
+        model = model.to(memory_format=torch.channels_last)
+    # The baseline sees only the human image; the others also learn from the robot's.
+    images = ("human",) if args.model == "baseline" else ("human", "robot")
     params = sum(p.numel() for p in model.parameters())
-    print(f"{args.model}: {params / 1e6:.2f} M parameters, {len(train['joints'])} training pairs", flush=True)
+    print(
+        f"{args.model}: {params / 1e6:.2f} M parameters, {len(train['joints'])} training pairs, "
+        f"convolutions in {'bfloat16' if models.CONV_BF16 else 'float32'}",
+        flush=True,
+    )
     opt = torch.optim.Adam(model.parameters(), lr=args.lr, betas=(args.beta1, 0.999))
     budget = args.minutes * 60
     start = time.monotonic()
@@ -207,7 +237,7 @@ def main():
                 halvings += 1
                 for g in opt.param_groups:
                     g["lr"] *= 0.5
-            batch = augment(to_batch(train, order[s : s + args.batch]), rng, args.rotate_deg, args.jitter_px)
+            batch = augment(to_batch(train, order[s : s + args.batch]), rng, args.rotate_deg, args.jitter_px, images)
             if args.model == "transteleop":
                 batch["recon_weight"] = recon_weight(batch["robot_uv"])
             losses, _ = model.losses(batch)

@@ -31,7 +31,7 @@ use teleop_render::{
 /// Name of the format in manifests.
 pub const FORMAT: &str = "teleop-hand-dataset";
 /// Version of the generator; bumped whenever the same seed would give other samples.
-pub const GENERATOR_VERSION: u32 = 1;
+pub const GENERATOR_VERSION: u32 = 2;
 /// Side of the preprocessed images.
 pub const IMAGE_SIZE: usize = 96;
 /// Columns of `meta.npy`.

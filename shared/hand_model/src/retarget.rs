@@ -68,7 +68,8 @@ pub struct RetargetSettings {
     /// Levenberg-Marquardt iterations per finger solve.
     pub iterations: u32,
     /// A finger whose fingertip error stays above this (m) is solved again from
-    /// `restarts` deterministic random starts, keeping the best.
+    /// `restarts` deterministic random starts, keeping the best (free solves only:
+    /// collision re-solves start from the free solution).
     pub restart_above_m: f64,
     pub restarts: u32,
     /// Self-collision passes (0 disables the collision goal).
@@ -489,6 +490,7 @@ impl Retargeter {
                 weight: w.direction,
             });
         }
+        let collision_resolve = avoid.is_some();
         if let Some(others) = avoid {
             goals.push(Goal::MinDistance {
                 constraint: Arc::new(Clearance {
@@ -506,7 +508,12 @@ impl Retargeter {
             Err(e) => *e.best,
         };
         let tip_error = (best.tip.translation.vector - targets.tip).norm();
-        if tip_error > self.settings.restart_above_m && self.settings.restarts > 0 {
+        // Random restarts only for the free solve: a collision re-solve starts from the
+        // finger's best free solution, which restarts would rarely beat.
+        if !collision_resolve
+            && tip_error > self.settings.restart_above_m
+            && self.settings.restarts > 0
+        {
             let budget = ColdBudget {
                 max_restarts: self.settings.restarts,
                 time_limit: None,

@@ -37,9 +37,15 @@ fn an_annotation_file_feeds_the_retargeting() {
         assert!(a.keypoints.max_distance(&b.keypoints) < 1e-6);
         let ja = r.retarget(&a.keypoints, None).expect("file").joints;
         let jb = r.retarget(&b.keypoints, None).expect("original").joints;
+        // The retargeting stops after a fixed iteration budget on an over-determined
+        // problem, and a finger that touches another is solved again under a stiff
+        // collision penalty: its end point can move by a few 1e-3 rad for a 0.1 um
+        // change of input. The same hand, in the task's terms: fingertips within 1 mm.
         for (x, y) in ja.iter().zip(&jb) {
-            assert!((x - y).abs() < 1e-3, "{x} vs {y}");
+            assert!((x - y).abs() < 0.02, "{x} vs {y}");
         }
+        let (ka, kb) = (r.shadow_keypoints(&ja), r.shadow_keypoints(&jb));
+        assert!(ka.max_distance(&kb) < 1e-3, "{}", ka.max_distance(&kb));
         // The hand centre projects into the dataset camera's image.
         let (u, v) = bighand::project(&bighand::hand_centre(&a.keypoints)).expect("in front");
         assert!(
