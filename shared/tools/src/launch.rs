@@ -1,6 +1,6 @@
 //! `teleop launch`: starts every node of the node table on this machine, as separate
 //! processes talking Zenoh peer-to-peer over loopback, shows the live monitor, and on
-//! Ctrl-C / SIGTERM / `--duration-s` stops them gracefully: each gets SIGINT (the
+//! Ctrl-C / SIGTERM / SIGHUP / `--duration-s` stops them gracefully: each gets SIGINT (the
 //! controllers first, the robots' owner last, so the controllers' stop commands still
 //! reach the hardware), a grace period to shut down, then SIGKILL. Every node's final status
 //! (its lifecycle state at the stop, its counters, its last error) is collected from
@@ -107,7 +107,11 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
                 .arg(dir.join(format!("{}.toml", spec.name)));
         }
         cmd.args(zenoh.to_args());
-        cmd.stdin(Stdio::null()).kill_on_drop(true);
+        // Each node in a process group of its own: a terminal's Ctrl-C (SIGINT to the
+        // whole foreground group) reaches only the launcher, which stops the nodes in
+        // the node table's order (controllers first, the robots' owner last) instead of
+        // all at once.
+        cmd.stdin(Stdio::null()).kill_on_drop(true).process_group(0);
         let child = cmd
             .spawn()
             .with_context(|| format!("starting {}", spec.name))?;
@@ -129,8 +133,19 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
             log.record(r.msg);
         }
     };
+    // A closed terminal (SIGHUP) stops the system the same way: the nodes, in groups of
+    // their own, would not get the hangup.
+    let hangup = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::hangup()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
     let early = tokio::select! {
         r = monitor => { r?; None }
+        () = hangup => None,
         (name, exit) = wait_any(&mut children) => Some((name, exit)),
         () = collect => None,
     };

@@ -69,3 +69,38 @@ fn launch_runs_the_system_and_stops_it_gracefully_with_a_summary() {
     assert!(stdout.contains("arm.engagements=1"), "{stdout}");
     assert!(stdout.contains("hand.hold.no_target="), "{stdout}");
 }
+
+/// A terminal's Ctrl-C sends SIGINT to the whole foreground process group: the launcher
+/// alone must get it (the nodes run in groups of their own) and stop the nodes in order,
+/// each one gracefully.
+#[test]
+fn ctrl_c_to_the_terminal_group_still_stops_every_node_gracefully() {
+    use std::os::unix::process::CommandExt;
+    let teleop = Path::new(env!("CARGO_BIN_EXE_teleop"));
+    let child = Command::new(teleop)
+        .args(["--domain-id", "92", "launch", "--quiet"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .process_group(0)
+        .spawn()
+        .expect("start teleop launch");
+    std::thread::sleep(std::time::Duration::from_secs(6));
+    let group = nix::unistd::Pid::from_raw(i32::try_from(child.id()).unwrap());
+    nix::sys::signal::killpg(group, nix::sys::signal::Signal::SIGINT).expect("SIGINT to the group");
+    let out = child.wait_with_output().expect("wait for teleop launch");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "launch failed ({}):\n{stdout}\n{stderr}",
+        out.status
+    );
+    for node in NODES {
+        let line = stdout
+            .lines()
+            .find(|l| l.starts_with(&format!("{} ", node.name)))
+            .unwrap_or_else(|| panic!("no summary line for {}:\n{stdout}", node.name));
+        assert!(line.contains("graceful"), "{line}");
+        assert!(line.contains("exit status: 0"), "{line}");
+    }
+}
