@@ -174,13 +174,7 @@ impl CameraArmConfig {
             ("reacquire_radius_m", self.reacquire_radius_m, 1e-3, 1.0),
             ("reacquire_after_s", self.reacquire_after_s, 0.0, 10.0),
         ];
-        for (name, v, lo, hi) in checks {
-            if !(v.is_finite() && v >= lo && v <= hi) {
-                return Err(format!(
-                    "camera_arm.{name} must be in [{lo}, {hi}], got {v}"
-                ));
-            }
-        }
+        teleop_control::check_ranges("camera_arm", &checks)?;
         if !self
             .look_at_in_hand_m
             .iter()
@@ -353,7 +347,6 @@ pub struct CameraArmController {
     jump: JumpFilter,
     limiter: CartesianLimiter,
     joint_limiter: JointVelocityLimiter<UR5_DOF>,
-    look_at: Vector3<f64>,
     hand: Option<(f64, Isometry3<f64>)>,
     last_received_s: f64,
     jumped: Option<Jumped>,
@@ -416,7 +409,6 @@ impl CameraArmController {
             },
         );
         Ok(Self {
-            look_at: Vector3::from(cfg.look_at_in_hand_m),
             cfg,
             solver,
             bodies,
@@ -478,7 +470,12 @@ impl CameraArmController {
 
     /// The camera goal for a hand pose, with this controller's settings.
     pub fn goal_for(&self, hand: &Isometry3<f64>) -> Isometry3<f64> {
-        camera_goal(hand, self.cfg.standoff_m, self.cfg.side, &self.look_at)
+        camera_goal(
+            hand,
+            self.cfg.standoff_m,
+            self.cfg.side,
+            &Vector3::from(self.cfg.look_at_in_hand_m),
+        )
     }
 
     fn frames(&self, q: &SVector<f64, UR5_DOF>) -> Option<Vec<Isometry3<f64>>> {

@@ -231,11 +231,7 @@ impl ArmControllerConfig {
                 1.0,
             ),
         ];
-        for (name, v, lo, hi) in checks {
-            if !(v.is_finite() && v >= lo && v <= hi) {
-                return Err(format!("arm.{name} must be in [{lo}, {hi}], got {v}"));
-            }
-        }
+        teleop_control::check_ranges("arm", &checks)?;
         TransformConfig {
             translation_m: [0.0; 3],
             rpy_deg: self.operator_to_robot_rpy_deg,

@@ -13,6 +13,21 @@ pub use filters::{
     VelocityLimitStrategy, Watchdog, WatchdogConfig, WatchdogEvent, WatchdogState,
 };
 pub use gate::{Closed, GateMode, OperatorGate, OperatorSample};
+
+/// Checks config values against closed ranges: each `(name, value, lo, hi)` must be
+/// finite and in `[lo, hi]`.
+///
+/// # Errors
+/// `"{prefix}.{name} must be in [{lo}, {hi}], got {value}"` for the first one that
+/// is not.
+pub fn check_ranges(prefix: &str, checks: &[(&str, f64, f64, f64)]) -> Result<(), String> {
+    for &(name, v, lo, hi) in checks {
+        if !(v.is_finite() && v >= lo && v <= hi) {
+            return Err(format!("{prefix}.{name} must be in [{lo}, {hi}], got {v}"));
+        }
+    }
+    Ok(())
+}
 pub use hand::{
     AdaptiveImpedance, CompliantProfiles, HandController, HandControllerConfig, HandMode,
     HandOutput, JointInput, PerJoint, ShadowHandController,

@@ -10,6 +10,20 @@ use std::process::Command;
 
 use teleop_interfaces::nodes::NODES;
 
+/// Every node of the table has a summary line: stopped gracefully, its final status
+/// reported, exit status 0.
+fn assert_every_node_stopped_gracefully(stdout: &str) {
+    for node in NODES {
+        let line = stdout
+            .lines()
+            .find(|l| l.starts_with(&format!("{} ", node.name)))
+            .unwrap_or_else(|| panic!("no summary line for {}:\n{stdout}", node.name));
+        assert!(line.contains("graceful"), "{line}");
+        assert!(line.contains("reported"), "{line}");
+        assert!(line.contains("exit status: 0"), "{line}");
+    }
+}
+
 #[test]
 fn launch_runs_the_system_and_stops_it_gracefully_with_a_summary() {
     let teleop = Path::new(env!("CARGO_BIN_EXE_teleop"));
@@ -42,15 +56,7 @@ fn launch_runs_the_system_and_stops_it_gracefully_with_a_summary() {
         out.status
     );
     assert!(stdout.contains("== teleop launch: summary"), "{stdout}");
-    for node in NODES {
-        let line = stdout
-            .lines()
-            .find(|l| l.starts_with(&format!("{} ", node.name)))
-            .unwrap_or_else(|| panic!("no summary line for {}:\n{stdout}", node.name));
-        assert!(line.contains("graceful"), "{line}");
-        assert!(line.contains("reported"), "{line}");
-        assert!(line.contains("exit status: 0"), "{line}");
-    }
+    assert_every_node_stopped_gracefully(&stdout);
     // The simulated operator pressed the clutch after 1 s: the arm was engaged and
     // moving when the system stopped; the hand had no targets (no hand inference yet).
     let state = |name: &str| {
@@ -95,12 +101,5 @@ fn ctrl_c_to_the_terminal_group_still_stops_every_node_gracefully() {
         "launch failed ({}):\n{stdout}\n{stderr}",
         out.status
     );
-    for node in NODES {
-        let line = stdout
-            .lines()
-            .find(|l| l.starts_with(&format!("{} ", node.name)))
-            .unwrap_or_else(|| panic!("no summary line for {}:\n{stdout}", node.name));
-        assert!(line.contains("graceful"), "{line}");
-        assert!(line.contains("exit status: 0"), "{line}");
-    }
+    assert_every_node_stopped_gracefully(&stdout);
 }
