@@ -4,6 +4,9 @@
 
 use std::path::Path;
 
+use teleop_hand_inference::node::HandInferenceConfig;
+use teleop_local_site::camera_arm_node::CameraArmNodeConfig;
+use teleop_local_site::local_sim::LocalSimConfig;
 use teleop_local_site::wrist_tracker::WristTrackerConfig;
 use teleop_node::NodeConfig;
 use teleop_node::config::{load_toml, parse_toml};
@@ -44,6 +47,15 @@ fn checker(stem: &str) -> Option<Checks> {
         "shadow_hand_controller" => {
             Some((check::<HandNodeConfig>, equals_default::<HandNodeConfig>))
         }
+        "local_sim" => Some((check::<LocalSimConfig>, equals_default::<LocalSimConfig>)),
+        "camera_arm" => Some((
+            check::<CameraArmNodeConfig>,
+            equals_default::<CameraArmNodeConfig>,
+        )),
+        "hand_inference" => Some((
+            check::<HandInferenceConfig>,
+            equals_default::<HandInferenceConfig>,
+        )),
         _ => None,
     }
 }

@@ -41,6 +41,8 @@ async fn wrist_tracker_publishes_ground_truth_poses_inputs_and_status() {
         ..Default::default()
     };
     let cfg = WristTrackerConfig {
+        source: wrist_tracker::TrackerSource::Simulated,
+        panel: wrist_tracker::PanelSource::Simulated,
         bus: node_bus,
         operator: operator.clone(),
         ..Default::default()
@@ -200,6 +202,8 @@ async fn wrist_tracker_drives_the_simulated_pr2_arm_through_the_clutch() {
         ..Default::default()
     };
     let tracker = WristTrackerConfig {
+        source: wrist_tracker::TrackerSource::Simulated,
+        panel: wrist_tracker::PanelSource::Simulated,
         bus: spoke.clone(),
         operator: SimulatedOperatorConfig {
             clutch_delay_s: 2.5,
@@ -312,6 +316,8 @@ async fn a_second_operator_site_is_refused_and_reported_never_blended() {
     };
     let arm_task = tokio::spawn(arm_node::run(arm, Some(Duration::from_secs(10))));
     let first = WristTrackerConfig {
+        source: wrist_tracker::TrackerSource::Simulated,
+        panel: wrist_tracker::PanelSource::Simulated,
         bus: spoke.clone(),
         operator: SimulatedOperatorConfig {
             clutch_delay_s: 1.0,
@@ -325,6 +331,8 @@ async fn a_second_operator_site_is_refused_and_reported_never_blended() {
     record(&mut trace, &states, &poses, Duration::from_millis(3500)).await;
     // The second station: another square elsewhere, its clutch pressed at once.
     let second = WristTrackerConfig {
+        source: wrist_tracker::TrackerSource::Simulated,
+        panel: wrist_tracker::PanelSource::Simulated,
         node_name: "wrist_tracker_b".into(),
         bus: spoke.clone(),
         operator: SimulatedOperatorConfig {

@@ -8,5 +8,7 @@
 //! pedal box slot in behind the same traits.
 
 pub mod camera_arm;
+pub mod camera_arm_node;
+pub mod local_sim;
 pub mod tracking;
 pub mod wrist_tracker;

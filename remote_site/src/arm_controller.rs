@@ -47,7 +47,8 @@ use nalgebra::{Isometry3, SVector, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 use teleop_control::{
     CartesianLimiter, CartesianLimits, Closed, GateMode, JointLimiterConfig, JointLimits,
-    JointVelocityLimiter, JumpFilter, JumpFilterConfig, OperatorGate, VelocityLimitStrategy,
+    JointVelocityLimiter, JumpFilter, JumpFilterConfig, OperatorGate, TransformConfig,
+    VelocityLimitStrategy,
 };
 
 pub use teleop_control::OperatorSample;
@@ -86,39 +87,6 @@ pub enum RegularizationReference {
     PreviousSolution,
     /// The measured joints, as the thesis text reads ("close to the current state").
     MeasuredJoints,
-}
-
-/// A rigid transform in config form: translation (m) and roll/pitch/yaw (deg, applied
-/// about fixed x, y, z).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
-#[serde(deny_unknown_fields, default)]
-pub struct TransformConfig {
-    pub translation_m: [f64; 3],
-    pub rpy_deg: [f64; 3],
-}
-
-impl TransformConfig {
-    /// As an isometry.
-    pub fn isometry(&self) -> Isometry3<f64> {
-        let [r, p, y] = self.rpy_deg.map(f64::to_radians);
-        Isometry3::from_parts(
-            Translation3::from(nalgebra::Vector3::from(self.translation_m)),
-            UnitQuaternion::from_euler_angles(r, p, y),
-        )
-    }
-
-    fn validate(&self, name: &str) -> Result<(), String> {
-        if self
-            .translation_m
-            .iter()
-            .chain(&self.rpy_deg)
-            .all(|v| v.is_finite() && v.abs() <= 1e3)
-        {
-            Ok(())
-        } else {
-            Err(format!("arm.{name} must be finite"))
-        }
-    }
 }
 
 /// Settings of the arm controller. Defaults are the thesis values where it gives them.
@@ -236,8 +204,8 @@ impl ArmControllerConfig {
             translation_m: [0.0; 3],
             rpy_deg: self.operator_to_robot_rpy_deg,
         }
-        .validate("operator_to_robot_rpy_deg")?;
-        self.marker_to_hand.validate("marker_to_hand")?;
+        .validate("arm.operator_to_robot_rpy_deg")?;
+        self.marker_to_hand.validate("arm.marker_to_hand")?;
         self.jump.validate().map_err(|e| format!("arm.jump: {e}"))?;
         self.cartesian
             .validate()

@@ -10,10 +10,10 @@ use teleop_bus::{Bus, BusConfig, NodeWatch};
 use teleop_hardware::ArmHardware;
 use teleop_hardware_bus::BusArm;
 use teleop_interfaces::hardware::PR2_ARM;
-use teleop_interfaces::{Site, nodes, topics};
+use teleop_interfaces::{nodes, topics};
 use teleop_msgs::{Lifecycle, OperatorInput, Pose, PoseStamped};
 use teleop_node::source::{self, CommanderConfig};
-use teleop_node::{FinalReport, Node, NodeConfig, SourceLock};
+use teleop_node::{FinalReport, Node, NodeConfig, SourceLock, check_controller_links};
 
 use crate::arm_controller::{
     ArmCommand, ArmController, ArmControllerConfig, ArmInputs, OperatorSample, WristSample,
@@ -25,7 +25,8 @@ use crate::arm_controller::{
 pub struct ArmNodeConfig {
     pub node_name: String,
     /// Nodes of the operator site; the arm stops when none of them is alive. Default:
-    /// the operator-site nodes of the node table.
+    /// the operator-site node it takes commands from, the wrist tracker (poses and
+    /// pedals).
     pub operator_site_nodes: Vec<String>,
     /// The arm hardware's state counts as lost after this long, s.
     pub hardware_timeout_s: f64,
@@ -39,33 +40,13 @@ impl Default for ArmNodeConfig {
     fn default() -> Self {
         Self {
             node_name: PR2_ARM.controller_node.into(),
-            operator_site_nodes: nodes::of_site(Site::Local).map(String::from).collect(),
+            operator_site_nodes: vec![nodes::WRIST_TRACKER.into()],
             hardware_timeout_s: 0.1,
             commander: CommanderConfig::default(),
             arm: ArmControllerConfig::default(),
             bus: BusConfig::default(),
         }
     }
-}
-
-/// Checks the settings every controller node has: the operator-site nodes it watches
-/// (at least one) and how old the hardware state may get (finite, > 0).
-///
-/// # Errors
-/// A message naming the field.
-pub fn check_controller_links(
-    operator_site_nodes: &[String],
-    hardware_timeout_s: f64,
-) -> Result<(), String> {
-    if operator_site_nodes.is_empty() {
-        return Err("operator_site_nodes must name at least one node".into());
-    }
-    if !(hardware_timeout_s.is_finite() && hardware_timeout_s > 0.0) {
-        return Err(format!(
-            "hardware_timeout_s must be positive, got {hardware_timeout_s}"
-        ));
-    }
-    Ok(())
 }
 
 impl NodeConfig for ArmNodeConfig {

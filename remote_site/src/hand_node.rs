@@ -11,12 +11,11 @@ use teleop_control::OperatorSample;
 use teleop_hardware::{ArmHardware, HandCommand, HandHardware};
 use teleop_hardware_bus::{BusArm, BusHand};
 use teleop_interfaces::hardware::{PR2_ARM, SHADOW_HAND};
-use teleop_interfaces::{Site, nodes, topics};
+use teleop_interfaces::{nodes, topics};
 use teleop_msgs::{JointState, Lifecycle, OperatorInput};
 use teleop_node::source::{self, CommanderConfig};
-use teleop_node::{FinalReport, Node, NodeConfig, SourceLock};
+use teleop_node::{FinalReport, Node, NodeConfig, SourceLock, check_controller_links};
 
-use crate::arm_node::check_controller_links;
 use crate::hand_controller::{HandSupervisor, HandSupervisorConfig};
 
 /// Configuration of the `shadow_hand_controller` node.
@@ -25,8 +24,8 @@ use crate::hand_controller::{HandSupervisor, HandSupervisorConfig};
 pub struct HandNodeConfig {
     pub node_name: String,
     /// Nodes of the operator site; the hand holds when none of them is alive. Default:
-    /// the operator-site nodes of the node table and `hand_inference` (the source of
-    /// the finger targets, built with the hand-inference stage).
+    /// the operator-site nodes it takes commands from: the wrist tracker (pedals) and
+    /// hand inference (finger targets).
     pub operator_site_nodes: Vec<String>,
     /// The hand hardware's state counts as lost after this long, s.
     pub hardware_timeout_s: f64,
@@ -40,10 +39,7 @@ impl Default for HandNodeConfig {
     fn default() -> Self {
         Self {
             node_name: SHADOW_HAND.controller_node.into(),
-            operator_site_nodes: nodes::of_site(Site::Local)
-                .chain([nodes::HAND_INFERENCE])
-                .map(String::from)
-                .collect(),
+            operator_site_nodes: vec![nodes::WRIST_TRACKER.into(), nodes::HAND_INFERENCE.into()],
             hardware_timeout_s: 0.05,
             commander: CommanderConfig::default(),
             hand: HandSupervisorConfig::default(),

@@ -251,7 +251,11 @@ impl Node for SimNode {
         if lag > 0.0 {
             world.step(lag.min(0.1));
         }
-        let (arm_state, hand_state) = (world.arm_state(), world.hand_state());
+        // Stamped with the node clock at the measurement, as a driver would (the
+        // world's own time starts at zero).
+        let (mut arm_state, mut hand_state) = (world.arm_state(), world.hand_state());
+        arm_state.time_s = now_s;
+        hand_state.time_s = now_s;
         let render = self.cameras.is_some() && self.camera_due.due(now_s);
         let camera = if render {
             self.cameras.as_mut().map(|c| c.render(&world, now_s))

@@ -12,8 +12,11 @@
 //! * [`DeterministicTestModel`] is a small model with the same interface, for tests
 //!   of nodes built on this crate.
 //! * [`metrics`]: the thesis's accuracy metrics.
+//! * [`node`]: the `hand_inference` node (depth frames and the camera and wrist poses
+//!   in, the finger joint targets out), generic over the [`JointModel`].
 
 pub mod metrics;
+pub mod node;
 pub mod runtime;
 
 use std::path::{Path, PathBuf};

@@ -65,10 +65,7 @@ pub fn find(explicit: Option<&Path>) -> Result<Found, InferenceError> {
             )],
         });
     }
-    let venv = std::env::var_os("TELEOP_VENV")
-        .map(PathBuf::from)
-        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache/teleop-venv")));
-    if let Some(venv) = venv {
+    if let Some(venv) = project_venv() {
         looked.push(format!(
             "{}/lib/python3*/site-packages/onnxruntime/capi",
             venv.display()
@@ -154,6 +151,65 @@ fn from_python() -> Option<PathBuf> {
     }
     let dir = String::from_utf8(out.stdout).ok()?;
     library_in(&PathBuf::from(dir.trim()).join("capi"))
+}
+
+/// The project's Python environment: `$TELEOP_VENV`, else `~/.cache/teleop-venv`.
+#[must_use]
+pub fn project_venv() -> Option<PathBuf> {
+    std::env::var_os("TELEOP_VENV")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache/teleop-venv")))
+}
+
+/// Finds the library, and when it is nowhere, installs the pinned `onnxruntime` wheel
+/// from PyPI into the project's Python environment ([`project_venv`], created with
+/// `python3 -m venv` if missing) and finds it there. What it does is logged, since it
+/// downloads.
+///
+/// # Errors
+/// [`InferenceError::RuntimeNotFound`] when the install failed, with pip's reason.
+pub fn find_or_install(explicit: Option<&Path>) -> Result<Found, InferenceError> {
+    let first = match find(explicit) {
+        Ok(f) => return Ok(f),
+        Err(e) if explicit.is_some() => return Err(e),
+        Err(e) => e,
+    };
+    let Some(venv) = project_venv() else {
+        return Err(first);
+    };
+    let fail = |what: String| InferenceError::RuntimeNotFound {
+        looked: vec![format!(
+            "installing onnxruntime=={ONNXRUNTIME_VERSION} into {}: {what}",
+            venv.display()
+        )],
+    };
+    let python = venv.join("bin/python");
+    tracing::info!(venv = %venv.display(), "ONNX Runtime not found: installing onnxruntime=={ONNXRUNTIME_VERSION} from PyPI into the project environment");
+    if !python.is_file() {
+        let status = std::process::Command::new("python3")
+            .args(["-m", "venv"])
+            .arg(&venv)
+            .status()
+            .map_err(|e| fail(format!("python3 -m venv: {e}")))?;
+        if !status.success() {
+            return Err(fail(format!("python3 -m venv exited with {status}")));
+        }
+    }
+    let status = std::process::Command::new(&python)
+        .args([
+            "-m",
+            "pip",
+            "install",
+            "--quiet",
+            "--disable-pip-version-check",
+            &format!("onnxruntime=={ONNXRUNTIME_VERSION}"),
+        ])
+        .status()
+        .map_err(|e| fail(format!("pip: {e}")))?;
+    if !status.success() {
+        return Err(fail(format!("pip exited with {status}")));
+    }
+    find(None)
 }
 
 /// Loads ONNX Runtime once per process (from `explicit` or the search) and returns

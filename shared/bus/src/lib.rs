@@ -22,6 +22,7 @@ pub mod guard;
 pub mod keys;
 mod session;
 pub mod stats;
+pub mod testing;
 
 pub use attachment::Attachment;
 pub use clock::{Clock, ManualClock, SystemClock};

@@ -4,41 +4,12 @@
 use std::time::Duration;
 
 use teleop_bus::attachment::Attachment;
-use teleop_bus::{Bus, BusConfig, NodeEvent, ZenohSettings};
+use teleop_bus::{Bus, BusConfig, NodeEvent};
 use teleop_interfaces::topics::{self, WRIST_POSE};
 use teleop_msgs::{Header, JointState, PoseStamped, Time, unix_nanos_now};
 
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
-/// A listening and a connecting node configuration in a private domain.
 fn pair_config(domain_id: u32) -> (BusConfig, BusConfig) {
-    let port = free_port();
-    let a = BusConfig {
-        domain_id,
-        zenoh: ZenohSettings {
-            listen: vec![format!("tcp/127.0.0.1:{port}")],
-            multicast_scouting: false,
-            ..Default::default()
-        },
-        ..Default::default()
-    };
-    let b = BusConfig {
-        domain_id,
-        zenoh: ZenohSettings {
-            listen: vec![],
-            connect: vec![format!("tcp/127.0.0.1:{port}")],
-            multicast_scouting: false,
-            ..Default::default()
-        },
-        ..Default::default()
-    };
-    (a, b)
+    teleop_bus::testing::loopback_pair(domain_id)
 }
 
 async fn pair(domain_id: u32) -> (Bus, Bus) {

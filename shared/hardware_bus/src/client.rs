@@ -1,12 +1,13 @@
 //! Controller-side clients.
 
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use teleop_bus::{Bus, BusError, Publisher, Subscriber};
 use teleop_hardware::{
     ArmCommand, ArmHardware, ArmState, Camera, CameraKind, HandCommand, HandHardware, HandState,
-    HardwareError, wire,
+    HardwareError, OperatorPanel, PedalState, WristTracker, wire,
 };
-use teleop_interfaces::{ArmInterface, HandInterface, Topic};
-use teleop_msgs::{FingertipPressures, Image, JointState};
+use teleop_interfaces::{ArmInterface, HandInterface, Topic, topics};
+use teleop_msgs::{FingertipPressures, Image, JointState, OperatorInput, PoseStamped, Time};
 
 /// The newest valid state of a subscription, with its receive time.
 fn freshest<S: Copy>(
@@ -262,5 +263,243 @@ impl Camera for BusCamera {
 
     fn dropped(&self) -> u64 {
         self.skipped + self.images.stats().overwritten
+    }
+}
+
+/// Largest accepted deviation of a tracker sample's quaternion norm from 1 (a driver
+/// sends unit quaternions in `f64`; anything further off is a corrupt sample).
+pub const MARKER_QUATERNION_TOLERANCE: f64 = 1e-6;
+
+/// One motion-capture sample: the marker's pose and when it was captured.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MarkerSample {
+    /// The marker's pose in the tracker's own frame (quaternion re-normalized).
+    pub pose: Isometry3<f64>,
+    /// Capture time: the message's `header.stamp`, exactly as the driver wrote it.
+    pub capture: Time,
+    /// Receive time on this node's clock, s since the Unix epoch.
+    pub received_s: f64,
+}
+
+/// Why a tracker message was refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Refusal {
+    NonFinite,
+    NotNormalized,
+}
+
+/// The marker pose of a message, or why it is refused.
+fn marker_pose(msg: &PoseStamped) -> Result<Isometry3<f64>, Refusal> {
+    let p = &msg.pose;
+    if !p.is_finite() {
+        return Err(Refusal::NonFinite);
+    }
+    let q = Quaternion::new(
+        p.orientation.w,
+        p.orientation.x,
+        p.orientation.y,
+        p.orientation.z,
+    );
+    if (q.norm() - 1.0).abs() > MARKER_QUATERNION_TOLERANCE {
+        return Err(Refusal::NotNormalized);
+    }
+    Ok(Isometry3::from_parts(
+        Translation3::new(p.position.x, p.position.y, p.position.z),
+        UnitQuaternion::from_quaternion(q),
+    ))
+}
+
+/// A motion-capture tracker reached over the bus ([`topics::HW_MOCAP_MARKER`] by
+/// default): the marker's pose in the tracker's own frame, stamped with its capture
+/// time.
+///
+/// [`read_sample`](Self::read_sample) (and [`WristTracker::read`]) return the newest
+/// sample that arrived since the last read, `Ok(None)` when none did (the marker is
+/// occluded, or the reader is faster than the tracker). Samples with a non-finite
+/// value or a quaternion norm off 1 by more than [`MARKER_QUATERNION_TOLERANCE`] are
+/// refused and counted ([`non_finite`](Self::non_finite),
+/// [`not_normalized`](Self::not_normalized)); they count as no sample.
+#[derive(Debug)]
+pub struct BusWristTracker {
+    samples: Subscriber<PoseStamped>,
+    stale_after_s: f64,
+    newest: Option<MarkerSample>,
+    non_finite: u64,
+    not_normalized: u64,
+    skipped: u64,
+}
+
+impl BusWristTracker {
+    /// Subscribes to the motion-capture topic [`topics::HW_MOCAP_MARKER`]; the tracker
+    /// is stale after `stale_after_s` without a valid sample.
+    ///
+    /// # Errors
+    /// [`BusError`] if the subscription cannot be declared.
+    pub async fn mocap(bus: &Bus, stale_after_s: f64) -> Result<Self, BusError> {
+        Self::new(bus, &topics::HW_MOCAP_MARKER, stale_after_s).await
+    }
+
+    /// Subscribes to `topic` (marker poses in the tracker's own frame).
+    ///
+    /// # Errors
+    /// [`BusError`] if the subscription cannot be declared.
+    pub async fn new(
+        bus: &Bus,
+        topic: &Topic<PoseStamped>,
+        stale_after_s: f64,
+    ) -> Result<Self, BusError> {
+        Ok(Self {
+            samples: bus.subscriber(topic).await?,
+            stale_after_s,
+            newest: None,
+            non_finite: 0,
+            not_normalized: 0,
+            skipped: 0,
+        })
+    }
+
+    /// The newest valid sample that arrived since the last read, with its capture
+    /// time; `Ok(None)` when none did.
+    ///
+    /// # Errors
+    /// [`HardwareError::NotConnected`] before the first valid sample,
+    /// [`HardwareError::StaleState`] when the newest valid sample was received more
+    /// than `stale_after_s` before `now_s`.
+    pub fn read_sample(&mut self, now_s: f64) -> Result<Option<MarkerSample>, HardwareError> {
+        let mut fresh: Option<MarkerSample> = None;
+        while let Some(r) = self.samples.try_recv() {
+            match marker_pose(&r.msg) {
+                Ok(pose) => {
+                    if fresh.is_some() {
+                        self.skipped += 1;
+                    }
+                    fresh = Some(MarkerSample {
+                        pose,
+                        capture: r.msg.header.stamp,
+                        received_s: r.receive_time_s(),
+                    });
+                }
+                Err(Refusal::NonFinite) => {
+                    self.non_finite += 1;
+                    tracing::debug!("tracker sample refused: non-finite value");
+                }
+                Err(Refusal::NotNormalized) => {
+                    self.not_normalized += 1;
+                    tracing::debug!("tracker sample refused: quaternion not normalized");
+                }
+            }
+        }
+        if fresh.is_some() {
+            self.newest = fresh;
+        }
+        let newest = self.newest.as_ref().ok_or_else(|| {
+            HardwareError::NotConnected("no motion-capture sample received yet".into())
+        })?;
+        let age_s = now_s - newest.received_s;
+        if age_s > self.stale_after_s {
+            return Err(HardwareError::StaleState { age_s });
+        }
+        Ok(fresh)
+    }
+
+    /// The newest valid sample received so far (the one the last successful read
+    /// returned, or an older one), whatever its age.
+    pub fn newest(&self) -> Option<&MarkerSample> {
+        self.newest.as_ref()
+    }
+
+    /// Samples refused for a NaN or infinite value.
+    pub fn non_finite(&self) -> u64 {
+        self.non_finite
+    }
+
+    /// Samples refused for a quaternion whose norm is not 1.
+    pub fn not_normalized(&self) -> u64 {
+        self.not_normalized
+    }
+
+    /// Valid samples that arrived but were replaced by a newer one before a read took
+    /// them (by this handle or by the subscriber's newest-only queue).
+    pub fn skipped(&self) -> u64 {
+        self.skipped + self.samples.stats().overwritten
+    }
+
+    /// The time after which the tracker is stale, s.
+    pub fn stale_after_s(&self) -> f64 {
+        self.stale_after_s
+    }
+}
+
+impl WristTracker for BusWristTracker {
+    fn read(&mut self, now_s: f64) -> Result<Option<Isometry3<f64>>, HardwareError> {
+        Ok(self.read_sample(now_s)?.map(|s| s.pose))
+    }
+}
+
+/// The pedal box and the enable switch reached over the bus ([`topics::HW_PEDALS`] by
+/// default): their latest state.
+///
+/// A message with a non-finite motion scale is refused and counted
+/// ([`bad_states`](Self::bad_states)); any other value is passed on (the robot site's
+/// operator gate judges the motion scale).
+#[derive(Debug)]
+pub struct BusPanel {
+    inputs: Subscriber<OperatorInput>,
+    latest: Option<(PedalState, f64)>,
+    stale_after_s: f64,
+    bad_states: u64,
+}
+
+impl BusPanel {
+    /// Subscribes to the pedal topic [`topics::HW_PEDALS`]; the state is stale (and
+    /// [`OperatorPanel::read`] fails) after `stale_after_s` without a valid message.
+    ///
+    /// # Errors
+    /// [`BusError`] if the subscription cannot be declared.
+    pub async fn pedals(bus: &Bus, stale_after_s: f64) -> Result<Self, BusError> {
+        Self::new(bus, &topics::HW_PEDALS, stale_after_s).await
+    }
+
+    /// Subscribes to `topic`.
+    ///
+    /// # Errors
+    /// [`BusError`] if the subscription cannot be declared.
+    pub async fn new(
+        bus: &Bus,
+        topic: &Topic<OperatorInput>,
+        stale_after_s: f64,
+    ) -> Result<Self, BusError> {
+        Ok(Self {
+            inputs: bus.subscriber(topic).await?,
+            latest: None,
+            stale_after_s,
+            bad_states: 0,
+        })
+    }
+
+    /// Messages refused (non-finite motion scale).
+    pub fn bad_states(&self) -> u64 {
+        self.bad_states
+    }
+}
+
+impl OperatorPanel for BusPanel {
+    fn read(&mut self, now_s: f64) -> Result<PedalState, HardwareError> {
+        while let Some(r) = self.inputs.try_recv() {
+            let m = &r.msg;
+            if m.motion_scale.is_finite() {
+                let state = PedalState {
+                    clutch: m.clutch,
+                    enable: m.enable,
+                    camera_stop: m.camera_stop,
+                    motion_scale: m.motion_scale,
+                };
+                self.latest = Some((state, r.receive_time_s()));
+            } else {
+                self.bad_states += 1;
+                tracing::warn!("pedal state refused: non-finite motion scale");
+            }
+        }
+        freshest(self.latest, now_s, self.stale_after_s, "pedal")
     }
 }

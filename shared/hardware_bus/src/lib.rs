@@ -2,9 +2,10 @@
 //! entry (`teleop_interfaces::hardware`).
 //!
 //! * Clients — what a controller holds: [`BusArm<N>`] (any arm: the PR2 chain, the UR5),
-//!   [`BusHand`], [`BusCamera`]. They implement the `teleop-hardware` traits, so a
-//!   controller cannot tell them from an in-process backend. A `monitor` handle only
-//!   reads.
+//!   [`BusHand`], [`BusCamera`], and the operator site's [`BusWristTracker`] (motion
+//!   capture, with each sample's capture time) and [`BusPanel`] (pedals). They
+//!   implement the `teleop-hardware` traits, so a controller cannot tell them from an
+//!   in-process backend. A `monitor` handle only reads.
 //! * Endpoints — what the process that owns the hardware holds: [`ArmEndpoint<N>`] and
 //!   [`HandEndpoint`] publish the state and take commands **only from the interface's
 //!   controller node** (bus [`SourcePolicy::Node`](teleop_bus::SourcePolicy)): samples
@@ -14,5 +15,8 @@
 mod client;
 mod endpoint;
 
-pub use client::{BusArm, BusCamera, BusHand};
+pub use client::{
+    BusArm, BusCamera, BusHand, BusPanel, BusWristTracker, MARKER_QUATERNION_TOLERANCE,
+    MarkerSample,
+};
 pub use endpoint::{ArmEndpoint, HandEndpoint};

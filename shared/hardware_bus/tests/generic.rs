@@ -5,7 +5,7 @@
 use std::time::Duration;
 
 use nalgebra::SVector;
-use teleop_bus::{Bus, BusConfig, ZenohSettings};
+use teleop_bus::{Bus, BusConfig};
 use teleop_hardware::{ArmCommand, ArmHardware, ArmState, Camera, CameraKind};
 use teleop_hardware_bus::{ArmEndpoint, BusArm, BusCamera};
 use teleop_interfaces::hardware::UR5_ARM;
@@ -13,31 +13,7 @@ use teleop_interfaces::topics;
 use teleop_msgs::{Image, encodings};
 
 fn configs(domain_id: u32) -> (BusConfig, BusConfig) {
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
-    let a = BusConfig {
-        domain_id,
-        zenoh: ZenohSettings {
-            listen: vec![format!("tcp/127.0.0.1:{port}")],
-            multicast_scouting: false,
-            ..Default::default()
-        },
-        ..Default::default()
-    };
-    let b = BusConfig {
-        domain_id,
-        zenoh: ZenohSettings {
-            listen: vec!["tcp/127.0.0.1:0".into()],
-            connect: vec![format!("tcp/127.0.0.1:{port}")],
-            multicast_scouting: false,
-            ..Default::default()
-        },
-        ..Default::default()
-    };
-    (a, b)
+    teleop_bus::testing::loopback_pair(domain_id)
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

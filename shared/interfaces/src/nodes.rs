@@ -82,27 +82,61 @@ pub const NODES: &[NodeSpec] = &[
         commands_hardware: false,
     },
     NodeSpec {
-        name: "wrist_tracker",
+        name: "local_sim",
+        site: Site::Local,
+        machine: "PC3",
+        config: "deploy/config/local_sim.toml",
+        role: "simulated operator (scripted tasks, hand shapes), motion capture, pedals, UR5 camera arm and SR300 depth camera, behind the hardware safety layer",
+        owns_hardware: true,
+        commands_hardware: false,
+    },
+    NodeSpec {
+        name: WRIST_TRACKER,
         site: Site::Local,
         machine: "PC1",
         config: "deploy/config/wrist_tracker.toml",
-        role: "operator wrist pose and pedals (simulated operator today)",
+        role: "operator hand frame in the UR5 base frame (registration, jump filter) and the pedals",
+        owns_hardware: false,
+        commands_hardware: false,
+    },
+    NodeSpec {
+        name: "camera_arm",
+        site: Site::Local,
+        machine: "PC1",
+        config: "deploy/config/camera_arm.toml",
+        role: "active vision: the UR5 keeps the depth camera on the operator's palm (IK, keep-out, limits, left pedal)",
+        owns_hardware: false,
+        commands_hardware: true,
+    },
+    NodeSpec {
+        name: HAND_INFERENCE,
+        site: Site::Local,
+        machine: "PC1",
+        config: "deploy/config/hand_inference.toml",
+        role: "depth image -> 17 Shadow finger targets (ONNX network through ort); no hand in view, no command",
         owns_hardware: false,
         commands_hardware: false,
     },
 ];
 
+/// The operator-site node that publishes the wrist pose and the pedals
+/// ([`WRIST_POSE`](crate::topics::WRIST_POSE), [`OPERATOR_INPUT`](crate::topics::OPERATOR_INPUT)).
+pub const WRIST_TRACKER: &str = "wrist_tracker";
+
 /// The operator-site node that publishes the finger targets
-/// ([`HAND_JOINT_TARGETS`](crate::topics::HAND_JOINT_TARGETS)); it joins [`NODES`] with
-/// the hand-inference stage.
+/// ([`HAND_JOINT_TARGETS`](crate::topics::HAND_JOINT_TARGETS)).
 pub const HAND_INFERENCE: &str = "hand_inference";
 
-/// The order to stop the nodes in: the controllers first (their shutdown commands the
-/// robots to stop), then the operator site, the hardware owners last.
+/// The order to stop the nodes in: the nodes that command hardware first (their
+/// shutdown commands the robots to stop while their inputs are still alive), then the
+/// other nodes, the hardware owners last.
 pub fn stop_order() -> impl Iterator<Item = &'static NodeSpec> {
-    NODES
+    let commanders = NODES.iter().filter(|n| n.commands_hardware);
+    let others = NODES
         .iter()
-        .filter(|n| !n.owns_hardware)
+        .filter(|n| !n.commands_hardware && !n.owns_hardware);
+    commanders
+        .chain(others)
         .chain(NODES.iter().filter(|n| n.owns_hardware))
 }
 
@@ -144,10 +178,16 @@ mod tests {
             assert_eq!(a.config, format!("deploy/config/{}.toml", a.name));
         }
         assert_eq!(find("remote_sim").map(|n| n.site), Some(Site::Remote));
-        assert_eq!(of_site(Site::Local).collect::<Vec<_>>(), ["wrist_tracker"]);
+        assert_eq!(
+            of_site(Site::Local).collect::<Vec<_>>(),
+            ["local_sim", "wrist_tracker", "camera_arm", "hand_inference"]
+        );
         let stop: Vec<&str> = stop_order().map(|n| n.name).collect();
         assert_eq!(stop.len(), NODES.len());
-        assert_eq!(stop.last(), Some(&"remote_sim"));
-        assert_eq!(stop.first(), Some(&"pr2_arm_controller"));
+        assert_eq!(stop[stop.len() - 2..], ["remote_sim", "local_sim"]);
+        assert_eq!(
+            stop[..3],
+            ["pr2_arm_controller", "shadow_hand_controller", "camera_arm"]
+        );
     }
 }

@@ -167,14 +167,14 @@ impl<T: Message> Topic<T> {
 use Direction::*;
 use QosClass as Q;
 
-/// 6D pose of the operator's wrist in the tracker's (UR5 base) frame.
+/// 6D pose of the operator's hand frame (wrist origin) in the UR5 base frame.
 pub const WRIST_POSE: Topic<PoseStamped> = Topic::new(
     "teleop/wrist_pose",
     LocalToRemote,
-    120.0,
+    320.0,
     Q::Control,
     Some(100),
-    "Operator wrist pose (tracker frame); drives the PR2 arm through the clutch and the camera arm",
+    "Operator hand frame (Fig. 3.6) in the UR5 base frame, registered and jump-filtered, stamped with the capture time; drives the PR2 arm through the clutch and the camera arm",
 );
 /// Shadow hand finger joint targets from hand inference.
 pub const HAND_JOINT_TARGETS: Topic<JointState> = Topic::new(
@@ -235,14 +235,63 @@ pub const REMOTE_CAMERA_SIDE: Topic<Image> = REMOTE_CAMERA_TOP.renamed(
     "teleop/remote_camera/side/image",
     "Side view of the robot's workspace (rgb8), rate-limited",
 );
-/// Depth image of the operator's hand from the camera on the UR5.
+/// Depth image of the operator's hand from the camera on the UR5, as its driver (or the
+/// operator-site simulator standing in for it) publishes it: stamped with the capture
+/// time, so every later stage can measure its latency from the camera.
 pub const HAND_DEPTH: Topic<Image> = Topic::new(
-    "teleop/local_camera/depth",
+    "teleop/hw/depth_camera/image",
     LocalInternal,
     30.0,
     Q::Image,
     None,
-    "Depth image (16UC1, mm) of the operator's hand from the camera on the UR5",
+    "Depth camera hardware: the operator's hand (16UC1, mm, SR300 640x480), stamped with the capture time",
+);
+/// Where the depth camera is: its optical frame in the UR5 base frame, computed by the
+/// camera arm from the measured joints and stamped with their measurement time, so hand
+/// inference knows where the camera was when a frame was taken.
+pub const CAMERA_POSE: Topic<PoseStamped> = Topic::new(
+    "teleop/local_camera/pose",
+    LocalInternal,
+    30.0,
+    Q::State,
+    Some(500),
+    "Depth camera optical frame in the UR5 base frame (FK of the measured UR5 joints, stamped with their time)",
+);
+/// Raw motion-capture reading of the marker on the back of the operator's hand.
+pub const HW_MOCAP_MARKER: Topic<PoseStamped> = Topic::new(
+    "teleop/hw/mocap/wrist_marker",
+    LocalInternal,
+    320.0,
+    Q::State,
+    Some(100),
+    "Motion capture hardware: the hand-back marker's 6D pose in the tracker's own frame (PhaseSpace-like, 320 Hz); none while occluded",
+);
+/// The pedal box and the enable switch, as their driver reads them.
+pub const HW_PEDALS: Topic<OperatorInput> = Topic::new(
+    "teleop/hw/pedals",
+    LocalInternal,
+    50.0,
+    Q::Control,
+    Some(100),
+    "Pedal box hardware: clutch (right), camera stop (left), enable switch, motion scale",
+);
+/// Simulation ground truth: the operator's true hand frame (Fig. 3.6).
+pub const SIM_OPERATOR_HAND_POSE: Topic<PoseStamped> = Topic::new(
+    "teleop/sim/operator/hand_pose",
+    LocalInternal,
+    100.0,
+    Q::State,
+    None,
+    "Simulation ground truth: the operator's true hand frame (Fig. 3.6) in the UR5 base frame",
+);
+/// Simulation ground truth: the operator's fingers retargeted to the Shadow hand.
+pub const SIM_OPERATOR_SHADOW_JOINTS: Topic<JointState> = Topic::new(
+    "teleop/sim/operator/shadow_joints",
+    LocalInternal,
+    30.0,
+    Q::State,
+    None,
+    "Simulation ground truth: the operator's true finger posture retargeted to the 17 Shadow finger joints (rad)",
 );
 /// UR5 joint states.
 pub const UR5_JOINT_STATES: Topic<JointState> = Topic::new(
@@ -366,6 +415,7 @@ pub const ALL: &[TopicSpec] = &[
     REMOTE_CAMERA_TOP.spec,
     REMOTE_CAMERA_SIDE.spec,
     HAND_DEPTH.spec,
+    CAMERA_POSE.spec,
     UR5_JOINT_STATES.spec,
     NODE_STATUS.spec,
     HW_PR2_ARM_STATE.spec,
@@ -377,6 +427,10 @@ pub const ALL: &[TopicSpec] = &[
     HW_UR5_COMMAND.spec,
     HW_CAMERA_TOP.spec,
     HW_CAMERA_SIDE.spec,
+    HW_MOCAP_MARKER.spec,
+    HW_PEDALS.spec,
+    SIM_OPERATOR_HAND_POSE.spec,
+    SIM_OPERATOR_SHADOW_JOINTS.spec,
 ];
 
 /// Looks a topic up by name (leading/trailing slashes ignored).

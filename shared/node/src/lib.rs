@@ -31,3 +31,39 @@ pub fn init_tracing() {
         .with_writer(std::io::stderr)
         .try_init();
 }
+
+/// Checks the settings every controller node has: the operator-site nodes it watches
+/// (at least one) and how old the hardware state may get (finite, > 0).
+///
+/// # Errors
+/// A message naming the field.
+pub fn check_controller_links(
+    operator_site_nodes: &[String],
+    hardware_timeout_s: f64,
+) -> Result<(), String> {
+    if operator_site_nodes.is_empty() {
+        return Err("operator_site_nodes must name at least one node".into());
+    }
+    if !(hardware_timeout_s.is_finite() && hardware_timeout_s > 0.0) {
+        return Err(format!(
+            "hardware_timeout_s must be positive, got {hardware_timeout_s}"
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::check_controller_links;
+
+    #[test]
+    fn controller_links_name_the_bad_field() {
+        assert!(check_controller_links(&["wrist_tracker".into()], 0.1).is_ok());
+        let none = check_controller_links(&[], 0.1).unwrap_err();
+        assert!(none.contains("operator_site_nodes"), "{none}");
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let e = check_controller_links(&["n".into()], bad).unwrap_err();
+            assert!(e.contains("hardware_timeout_s"), "{e}");
+        }
+    }
+}

@@ -1,5 +1,6 @@
-//! The simulated PR2 arm (+ Shadow wrist): 7 velocity-commanded joints, kinematic (no
-//! dynamics: the PR2's joint velocity loops are stiff against the hand's weight).
+//! A simulated velocity-commanded arm of `N` joints, kinematic (no dynamics: the PR2's
+//! and the UR5's joint velocity loops are stiff against their loads): the PR2 arm
+//! (+ Shadow wrist, 7 joints) of the robot site and the UR5 (6) of the operator site.
 //!
 //! Per step `dt`, for each joint:
 //! 1. first-order lag towards the commanded velocity, exactly discretised:
@@ -11,8 +12,6 @@
 //!    zero velocity (continuous joints have no limit).
 
 use nalgebra::SVector;
-
-use super::config::ArmSimConfig;
 
 /// Limits of one arm joint.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -29,27 +28,34 @@ pub struct ArmJointLimits {
 
 /// State and response model of the arm.
 #[derive(Debug, Clone)]
-pub struct ArmSim {
-    limits: [ArmJointLimits; 7],
-    lag_s: [f64; 7],
+pub struct ArmSim<const N: usize = 7> {
+    limits: [ArmJointLimits; N],
+    lag_s: [f64; N],
     timeout_s: f64,
-    position_rad: SVector<f64, 7>,
-    velocity_rad_s: SVector<f64, 7>,
-    command_rad_s: SVector<f64, 7>,
+    position_rad: SVector<f64, N>,
+    velocity_rad_s: SVector<f64, N>,
+    command_rad_s: SVector<f64, N>,
     /// Sim time of the last command; `None` before the first one (the arm holds still).
     command_time_s: Option<f64>,
 }
 
-impl ArmSim {
-    /// An arm at rest at `config.initial_position_rad` (clamped into the limits).
-    pub fn new(config: &ArmSimConfig, limits: [ArmJointLimits; 7]) -> Self {
-        let position_rad = SVector::<f64, 7>::from_fn(|i, _| {
-            config.initial_position_rad[i].clamp(limits[i].lower_rad, limits[i].upper_rad)
+impl<const N: usize> ArmSim<N> {
+    /// An arm at rest at `initial_rad` (clamped into the limits), every joint with the
+    /// velocity lag `lag_s`, braking on its own once the last command is older than
+    /// `command_timeout_s`.
+    pub fn new(
+        limits: [ArmJointLimits; N],
+        initial_rad: &SVector<f64, N>,
+        lag_s: f64,
+        command_timeout_s: f64,
+    ) -> Self {
+        let position_rad = SVector::<f64, N>::from_fn(|i, _| {
+            initial_rad[i].clamp(limits[i].lower_rad, limits[i].upper_rad)
         });
         Self {
             limits,
-            lag_s: [config.velocity_lag_s; 7],
-            timeout_s: config.command_timeout_s,
+            lag_s: [lag_s; N],
+            timeout_s: command_timeout_s,
             position_rad,
             velocity_rad_s: SVector::zeros(),
             command_rad_s: SVector::zeros(),
@@ -59,13 +65,13 @@ impl ArmSim {
 
     /// Per-joint velocity lags (the simulated robot's own, perturbed), s.
     #[must_use]
-    pub fn with_lags(mut self, lag_s: [f64; 7]) -> Self {
+    pub fn with_lags(mut self, lag_s: [f64; N]) -> Self {
         self.lag_s = lag_s;
         self
     }
 
     /// Stores a velocity command received at sim time `time_s`.
-    pub fn command(&mut self, velocity_rad_s: &SVector<f64, 7>, time_s: f64) {
+    pub fn command(&mut self, velocity_rad_s: &SVector<f64, N>, time_s: f64) {
         self.command_rad_s = *velocity_rad_s;
         self.command_time_s = Some(time_s);
     }
@@ -79,7 +85,7 @@ impl ArmSim {
     /// Advances by `dt_s`; `time_s` is the sim time at the start of the step.
     pub fn step(&mut self, time_s: f64, dt_s: f64) {
         let active = self.command_active(time_s);
-        for i in 0..7 {
+        for i in 0..N {
             let blend = if self.lag_s[i] > 0.0 {
                 1.0 - (-dt_s / self.lag_s[i]).exp()
             } else {
@@ -109,23 +115,23 @@ impl ArmSim {
     }
 
     /// Joint positions, rad.
-    pub fn position_rad(&self) -> &SVector<f64, 7> {
+    pub fn position_rad(&self) -> &SVector<f64, N> {
         &self.position_rad
     }
 
     /// Joint velocities, rad/s.
-    pub fn velocity_rad_s(&self) -> &SVector<f64, 7> {
+    pub fn velocity_rad_s(&self) -> &SVector<f64, N> {
         &self.velocity_rad_s
     }
 
     /// The joint limits in use.
-    pub fn limits(&self) -> &[ArmJointLimits; 7] {
+    pub fn limits(&self) -> &[ArmJointLimits; N] {
         &self.limits
     }
 
     /// Places the arm (clamped into its limits) at rest; for scenario setup.
-    pub fn set_position(&mut self, position_rad: &SVector<f64, 7>) {
-        for i in 0..7 {
+    pub fn set_position(&mut self, position_rad: &SVector<f64, N>) {
+        for i in 0..N {
             self.position_rad[i] =
                 position_rad[i].clamp(self.limits[i].lower_rad, self.limits[i].upper_rad);
         }
@@ -148,7 +154,7 @@ mod tests {
 
     #[test]
     fn no_command_no_motion() {
-        let mut arm = ArmSim::new(&ArmSimConfig::default(), limits());
+        let mut arm = ArmSim::new(limits(), &SVector::zeros(), 0.03, 0.1);
         for k in 0..100 {
             arm.step(f64::from(k) * 0.001, 0.001);
         }
@@ -157,7 +163,7 @@ mod tests {
 
     #[test]
     fn stops_at_position_limit() {
-        let mut arm = ArmSim::new(&ArmSimConfig::default(), limits());
+        let mut arm = ArmSim::new(limits(), &SVector::zeros(), 0.03, 0.1);
         for k in 0..2000 {
             let t = f64::from(k) * 0.001;
             arm.command(&SVector::repeat(1.0), t);

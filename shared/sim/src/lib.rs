@@ -105,6 +105,7 @@ pub mod geometry;
 pub mod hardware;
 pub mod objects;
 pub mod operator;
+pub mod operator_site;
 mod scenarios;
 mod world;
 

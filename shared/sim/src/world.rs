@@ -314,7 +314,13 @@ impl World {
         let arm_lag_s = perturbation
             .arm_lag_scale
             .map(|f| f * config.arm.velocity_lag_s);
-        let arm = ArmSim::new(&config.arm, arm_limits).with_lags(arm_lag_s);
+        let arm = ArmSim::new(
+            arm_limits,
+            &SVector::from(config.arm.initial_position_rad),
+            config.arm.velocity_lag_s,
+            config.arm.command_timeout_s,
+        )
+        .with_lags(arm_lag_s);
         let hand_q = SVector::<f64, 17>::from_fn(|i, _| {
             config.hand.initial_position_rad[i].clamp(hand_lower[i], hand_upper[i])
         });

@@ -17,9 +17,21 @@ use nix::unistd::Pid;
 use teleop_bus::{Bus, BusConfig, Subscriber};
 use teleop_interfaces::nodes::{NODES, NodeSpec};
 use teleop_interfaces::topics;
+use teleop_local_site::local_sim::LocalSimConfig;
 use teleop_msgs::{Lifecycle, NodeStatus};
 use teleop_node::ZenohArgs;
+use teleop_sim::operator_site::TaskKind;
 use tokio::process::{Child, Command};
+
+use crate::report::Recorder;
+
+/// A counter of a status, by name.
+fn counter(s: &NodeStatus, name: &str) -> Option<u64> {
+    s.counter_names
+        .iter()
+        .position(|n| n == name)
+        .and_then(|i| s.counter_values.get(i).copied())
+}
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct LaunchArgs {
@@ -35,6 +47,45 @@ pub struct LaunchArgs {
     /// Seconds each node gets to shut down after SIGINT before it is killed.
     #[arg(long, default_value_t = 5.0)]
     pub grace_s: f64,
+    /// Run this operator task once and stop when it is done (pick_and_place, pouring,
+    /// sweeping, fader, precision). Default: the simulator's configured task, repeated
+    /// until Ctrl-C or `--duration-s`.
+    #[arg(long)]
+    pub task: Option<String>,
+    /// Where the end-of-run report is written (`report.json`, `report.png`).
+    #[arg(long, default_value = "teleop-report")]
+    pub report_dir: PathBuf,
+    /// Write no report files (the report is still printed).
+    #[arg(long)]
+    pub no_report_files: bool,
+}
+
+/// The simulator's config for this run: the shipped file or the defaults, with the
+/// task chosen on the command line (run once).
+fn local_sim_config(args: &LaunchArgs) -> anyhow::Result<Option<(PathBuf, String)>> {
+    let mut cfg: LocalSimConfig = match &args.config_dir {
+        Some(dir) => teleop_node::config::load_checked(&dir.join("local_sim.toml"))?,
+        None => LocalSimConfig::default(),
+    };
+    let Some(task) = &args.task else {
+        return Ok(None);
+    };
+    cfg.operator_site.task = TaskKind::ALL
+        .into_iter()
+        .find(|k| k.name() == task)
+        .with_context(|| {
+            format!(
+                "unknown task {task:?}; the tasks are: {}",
+                TaskKind::ALL.map(TaskKind::name).join(", ")
+            )
+        })?;
+    cfg.operator_site.repeat = false;
+    let dir = std::env::temp_dir().join(format!("teleop-launch-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let path = dir.join("local_sim.toml");
+    std::fs::write(&path, teleop_node::config::to_toml(&cfg)?)
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(Some((path, task.clone())))
 }
 
 /// Where the node binaries are: next to this one.
@@ -49,6 +100,33 @@ fn node_binary(name: &str) -> anyhow::Result<PathBuf> {
         );
     }
     Ok(path)
+}
+
+/// Hand inference needs ONNX Runtime: its binary finds the library, or installs the
+/// pinned PyPI wheel into the project's Python environment (once; later runs find it).
+async fn ensure_onnx_runtime(args: &LaunchArgs) -> anyhow::Result<()> {
+    let name = teleop_interfaces::nodes::HAND_INFERENCE;
+    let mut cmd = Command::new(node_binary(name)?);
+    cmd.arg("--ensure-runtime");
+    if let Some(dir) = &args.config_dir {
+        cmd.arg("--config").arg(dir.join(format!("{name}.toml")));
+    }
+    let out = cmd
+        .stdin(Stdio::null())
+        .stderr(Stdio::inherit())
+        .output()
+        .await
+        .with_context(|| format!("running {name} --ensure-runtime"))?;
+    if !out.status.success() {
+        bail!(
+            "hand inference has no ONNX Runtime (see the message above); the system was not started"
+        );
+    }
+    tracing::info!(
+        library = String::from_utf8_lossy(&out.stdout).trim(),
+        "ONNX Runtime for hand inference"
+    );
+    Ok(())
 }
 
 /// How one node ended.
@@ -99,10 +177,30 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
     let status = bus.subscriber(&topics::NODE_STATUS).await?;
     let mut log = StatusLog::default();
 
+    ensure_onnx_runtime(&args).await?;
+    let sim_config = local_sim_config(&args)?;
+    let task_name = match &sim_config {
+        Some((_, t)) => t.clone(),
+        None => match &args.config_dir {
+            Some(dir) => {
+                let c: LocalSimConfig =
+                    teleop_node::config::load_checked(&dir.join("local_sim.toml"))?;
+                c.operator_site.task.name().to_owned()
+            }
+            None => LocalSimConfig::default()
+                .operator_site
+                .task
+                .name()
+                .to_owned(),
+        },
+    };
+    let mut recorder = Recorder::new(&bus, &task_name).await?;
     let mut children: Vec<(&'static NodeSpec, Child)> = Vec::new();
     for spec in NODES {
         let mut cmd = Command::new(node_binary(spec.name)?);
-        if let Some(dir) = &args.config_dir {
+        if let (Some((path, _)), "local_sim") = (&sim_config, spec.name) {
+            cmd.arg("--config").arg(path);
+        } else if let Some(dir) = &args.config_dir {
             cmd.arg("--config")
                 .arg(dir.join(format!("{}.toml", spec.name)));
         }
@@ -127,10 +225,25 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
             crate::inspect::monitor_until(&cfg, None, teleop_node::stop_signal(duration)).await
         }
     };
+    let run_once = sim_config.is_some();
     let collect = async {
+        let mut done_since: Option<tokio::time::Instant> = None;
         loop {
-            let r = status.recv().await;
-            log.record(r.msg);
+            while let Some(r) = status.try_recv() {
+                // With a task run once: stop 1 s after the simulator reports it done.
+                if run_once
+                    && r.msg.node_name == "local_sim"
+                    && counter(&r.msg, "sim.task_repetitions").is_some_and(|n| n >= 1)
+                {
+                    done_since.get_or_insert_with(tokio::time::Instant::now);
+                }
+                log.record(r.msg);
+            }
+            recorder.poll();
+            if done_since.is_some_and(|t| t.elapsed() > Duration::from_secs(1)) {
+                return;
+            }
+            tokio::time::sleep(Duration::from_millis(5)).await;
         }
     };
     // A closed terminal (SIGHUP) stops the system the same way: the nodes, in groups of
@@ -152,6 +265,20 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
     log.drain(&status);
     let outcomes = stop_all(&mut children, args.grace_s, &status, &mut log).await;
     print_summary(&outcomes);
+    let report = recorder.finish(bus.now_s(), &log.finals);
+    println!();
+    print!("{}", report.text());
+    if !args.no_report_files {
+        std::fs::create_dir_all(&args.report_dir)
+            .with_context(|| format!("creating {}", args.report_dir.display()))?;
+        let json = args.report_dir.join("report.json");
+        let png = args.report_dir.join("report.png");
+        report.write_json(&json)?;
+        match report.write_png(&png) {
+            Ok(()) => println!("report written to {} and {}", json.display(), png.display()),
+            Err(e) => println!("report written to {}; no plot: {e}", json.display()),
+        }
+    }
     drop(status);
     bus.close().await?;
     if let Some((name, exit)) = early {

@@ -3,6 +3,7 @@
 
 mod inspect;
 mod launch;
+mod report;
 
 use clap::{Parser, Subcommand};
 use teleop_node::ZenohArgs;

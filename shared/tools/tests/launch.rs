@@ -44,6 +44,7 @@ fn launch_runs_the_system_and_stops_it_gracefully_with_a_summary() {
             "--duration-s",
             "7",
             "--quiet",
+            "--no-report-files",
         ])
         .output()
         .expect("run teleop launch");
@@ -57,8 +58,9 @@ fn launch_runs_the_system_and_stops_it_gracefully_with_a_summary() {
     );
     assert!(stdout.contains("== teleop launch: summary"), "{stdout}");
     assert_every_node_stopped_gracefully(&stdout);
-    // The simulated operator pressed the clutch after 1 s: the arm was engaged and
-    // moving when the system stopped; the hand had no targets (no hand inference yet).
+    // The simulated operator pressed the clutch after 2 s and started the task: the
+    // arm and the hand (its finger targets from hand inference, the depth camera on
+    // the UR5 following the hand) were engaged when the system stopped.
     let state = |name: &str| {
         stdout
             .lines()
@@ -70,10 +72,94 @@ fn launch_runs_the_system_and_stops_it_gracefully_with_a_summary() {
             .to_owned()
     };
     assert_eq!(state("pr2_arm_controller"), "Active", "{stdout}");
-    assert_eq!(state("shadow_hand_controller"), "Inactive", "{stdout}");
+    assert_eq!(state("shadow_hand_controller"), "Active", "{stdout}");
+    assert_eq!(state("camera_arm"), "Active", "{stdout}");
+    assert_eq!(state("hand_inference"), "Active", "{stdout}");
     assert_eq!(state("remote_sim"), "Active", "{stdout}");
+    assert_eq!(state("local_sim"), "Active", "{stdout}");
     assert!(stdout.contains("arm.engagements=1"), "{stdout}");
-    assert!(stdout.contains("hand.hold.no_target="), "{stdout}");
+    assert!(stdout.contains("hand.engagements=1"), "{stdout}");
+    assert!(
+        stdout.contains("== teleop launch: end-of-run report"),
+        "{stdout}"
+    );
+}
+
+/// `--task` runs one task of the simulated operator and ends by itself when it is done,
+/// with the end-of-run report printed and written as JSON and PNG. The report's
+/// figures come from the closed loop against the simulator's ground truth: the camera
+/// kept the hand in view, the PR2 followed the scaled operator motion, hand inference
+/// produced a target for nearly every depth frame.
+#[test]
+fn a_task_runs_once_and_ends_with_the_report() {
+    let teleop = Path::new(env!("CARGO_BIN_EXE_teleop"));
+    let dir = std::env::temp_dir().join(format!("teleop-report-test-{}", std::process::id()));
+    let out = Command::new(teleop)
+        .args([
+            "--domain-id",
+            "93",
+            "launch",
+            "--quiet",
+            "--task",
+            "fader",
+            "--report-dir",
+        ])
+        .arg(&dir)
+        // A bound in case the task never reports done.
+        .args(["--duration-s", "60"])
+        .output()
+        .expect("run teleop launch");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    println!("{stdout}");
+    assert!(
+        out.status.success(),
+        "launch failed ({}):\n{stdout}\n{stderr}",
+        out.status
+    );
+    assert_every_node_stopped_gracefully(&stdout);
+    let json: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.join("report.json")).expect("report.json written"),
+    )
+    .expect("report.json parses");
+    let png = std::fs::read(dir.join("report.png")).expect("report.png written");
+    assert!(png.starts_with(b"\x89PNG"), "not a PNG");
+    let f = |key: &str| {
+        json[key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{key} in {json}"))
+    };
+    let nested = |key: &str, field: &str| {
+        json[key][field]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{key}.{field} in {json}"))
+    };
+    assert_eq!(json["task"], "fader");
+    // The fader task (about 16 s) ran to its end, and not to the 60 s bound.
+    let duration = f("duration_s");
+    assert!((15.0..40.0).contains(&duration), "ran {duration} s");
+    // The camera kept the hand in view and near its goal.
+    let frames = f("depth_frames");
+    assert!(frames > 300.0, "{frames} depth frames");
+    assert!(f("fraction_hand_fully_in_view") > 0.9, "{json}");
+    assert!(nested("camera_position_error_m", "mean") < 0.03, "{json}");
+    assert!(
+        nested("camera_position_error_m", "samples") > 300.0,
+        "{json}"
+    );
+    // Hand inference: targets for (nearly) every frame, paired with the truth.
+    assert!(f("finger_target_frames") > 0.8 * frames, "{json}");
+    assert!(nested("hand_joint_mean_error_rad", "mean") < 0.15, "{json}");
+    // The PR2 followed the operator while clutched.
+    assert_eq!(json["clutch_engagements"], 1, "{json}");
+    assert!(nested("pr2_position_error_m", "samples") > 500.0, "{json}");
+    assert!(nested("pr2_position_error_m", "mean") < 0.03, "{json}");
+    // Every latency stage was measured.
+    for stage in json["latency"].as_array().expect("latency") {
+        assert!(stage["samples"].as_u64().unwrap_or(0) > 100, "{stage}");
+        assert!(stage["p50_ms"].as_f64().is_some_and(|v| v > 0.0), "{stage}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// A terminal's Ctrl-C sends SIGINT to the whole foreground process group: the launcher
@@ -84,7 +170,13 @@ fn ctrl_c_to_the_terminal_group_still_stops_every_node_gracefully() {
     use std::os::unix::process::CommandExt;
     let teleop = Path::new(env!("CARGO_BIN_EXE_teleop"));
     let child = Command::new(teleop)
-        .args(["--domain-id", "92", "launch", "--quiet"])
+        .args([
+            "--domain-id",
+            "92",
+            "launch",
+            "--quiet",
+            "--no-report-files",
+        ])
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .process_group(0)

@@ -1,0 +1,18 @@
+//! Operator-site simulator: the simulated operator, motion capture, pedals, the UR5 and its depth camera, offered to the operator-site nodes over the hardware topics.
+use clap::Parser;
+use teleop_local_site::local_sim;
+use teleop_node::NodeArgs;
+
+/// Simulates the operator site's hardware in real time.
+#[derive(Debug, Parser)]
+#[command(version, about)]
+struct Cli {
+    #[command(flatten)]
+    node: NodeArgs,
+}
+
+#[tokio::main]
+async fn main() -> anyhow::Result<()> {
+    teleop_node::init_tracing();
+    Cli::parse().node.run(local_sim::run).await
+}

@@ -1,0 +1,443 @@
+//! The operator-site simulator process (`local_sim`), the counterpart of the robot
+//! site's `remote_sim`: it owns the simulated operator world
+//! ([`teleop_sim::operator_site`]) and offers it to the site's nodes over the hardware
+//! topics, as the devices' drivers would:
+//!
+//! | device | topic | rate |
+//! |---|---|---|
+//! | motion capture (marker on the back of the hand, capture frame) | [`topics::HW_MOCAP_MARKER`] | 320 Hz, none while occluded |
+//! | pedal box and enable switch | [`topics::HW_PEDALS`] | 50 Hz |
+//! | UR5 state / velocity commands | [`UR5_ARM`] (`teleop/hw/ur5/...`) | every tick / from `camera_arm` only |
+//! | SR300 depth camera on the UR5 | [`topics::HAND_DEPTH`] | 30 Hz |
+//!
+//! plus the simulation's ground truth for the end-of-run metrics:
+//! [`topics::SIM_OPERATOR_HAND_POSE`] (the true hand frame) and
+//! [`topics::SIM_OPERATOR_SHADOW_JOINTS`] (the true fingers retargeted to the Shadow
+//! hand), the latter stamped with the capture time of the depth frame it belongs to, so
+//! an inferred posture can be paired with its truth by stamp.
+//!
+//! Every sample is stamped with the node clock at the moment it was measured (the
+//! capture time), so every later stage measures its latency from there.
+//!
+//! It owns the UR5, so the last safety layer of the camera arm lives here: the UR5 is
+//! wrapped in a [`SafeArm`] (joint speed and acceleration, position margins, camera
+//! speed <= 0.25 m/s, brake after 0.1 s without a command) and its endpoint takes
+//! commands only from the `camera_arm` node.
+
+use std::time::Duration;
+
+use nalgebra::Isometry3;
+use serde::{Deserialize, Serialize};
+use teleop_bus::{Bus, BusConfig, Publisher};
+use teleop_hardware::safety::{ArmSafety, ArmSafetyConfig};
+use teleop_hardware::{ArmCommand, ArmHardware, SafeArm};
+use teleop_hardware_bus::ArmEndpoint;
+use teleop_interfaces::hardware::UR5_ARM;
+use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
+use teleop_interfaces::topics;
+use teleop_msgs::{Header, Image, JointState, Lifecycle, OperatorInput, PoseStamped, Time};
+use teleop_node::{FinalReport, Node, NodeConfig, Periodic};
+use teleop_sim::operator_site::{
+    MocapReading, OperatorSiteConfig, OperatorWorld, SharedOperatorWorld, SimUr5, UR5_DOF,
+};
+
+use crate::wrist_tracker::pose_msg;
+
+/// The hardware safety layer of the simulated UR5.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LocalSimSafetyConfig {
+    /// The only node whose UR5 commands are taken.
+    pub ur5_controller_node: String,
+    pub ur5: ArmSafetyConfig,
+}
+
+impl Default for LocalSimSafetyConfig {
+    fn default() -> Self {
+        Self {
+            ur5_controller_node: UR5_ARM.controller_node.into(),
+            ur5: ArmSafetyConfig {
+                // The camera's optical centre and a point 10 cm ahead of the flange
+                // side (the camera body).
+                tool_points_m: vec![[0.0, 0.0, 0.0], [0.0, 0.0, -0.1]],
+                ..ArmSafetyConfig::default()
+            },
+        }
+    }
+}
+
+/// Configuration of the `local_sim` node.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LocalSimConfig {
+    pub node_name: String,
+    /// Pedal publishing rate, Hz.
+    pub pedal_rate_hz: f64,
+    /// Ground-truth hand pose publishing rate, Hz.
+    pub truth_rate_hz: f64,
+    /// The simulated operator world (task, hand, motion capture, UR5, camera). The
+    /// node ticks at the motion capture's rate.
+    pub operator_site: OperatorSiteConfig,
+    pub safety: LocalSimSafetyConfig,
+    pub bus: BusConfig,
+}
+
+impl Default for LocalSimConfig {
+    fn default() -> Self {
+        Self {
+            node_name: "local_sim".into(),
+            pedal_rate_hz: topics::HW_PEDALS.spec.rate_hz,
+            truth_rate_hz: topics::SIM_OPERATOR_HAND_POSE.spec.rate_hz,
+            operator_site: OperatorSiteConfig::default(),
+            safety: LocalSimSafetyConfig::default(),
+            bus: BusConfig::default(),
+        }
+    }
+}
+
+impl NodeConfig for LocalSimConfig {
+    fn bus_mut(&mut self) -> &mut BusConfig {
+        &mut self.bus
+    }
+    fn validate(&self) -> Result<(), String> {
+        teleop_control::check_ranges(
+            "local_sim",
+            &[
+                ("pedal_rate_hz", self.pedal_rate_hz, 1.0, 1000.0),
+                ("truth_rate_hz", self.truth_rate_hz, 1.0, 1000.0),
+            ],
+        )?;
+        self.operator_site.validate()?;
+        self.safety
+            .ur5
+            .validate()
+            .map_err(|e| format!("safety.ur5: {e}"))?;
+        if self.safety.ur5_controller_node.is_empty() {
+            return Err("safety.ur5_controller_node must name a node".into());
+        }
+        Ok(())
+    }
+}
+
+/// Counters of the simulator node.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct LocalSimCounters {
+    pub marker_samples: u64,
+    pub marker_dropouts: u64,
+    pub marker_glitches: u64,
+    pub depth_frames: u64,
+    /// Depth frames in which every keypoint of the hand was inside the image.
+    pub frames_hand_fully_in_view: u64,
+    /// Depth frames with no keypoint of the hand in the image.
+    pub frames_hand_out_of_view: u64,
+    pub hardware_errors: u64,
+}
+
+/// The simulator node.
+pub struct LocalSimNode {
+    period: Duration,
+    world: SharedOperatorWorld,
+    ur5: SafeArm<UR5_DOF, SimUr5>,
+    ur5_endpoint: ArmEndpoint<UR5_DOF>,
+    marker_pub: Publisher<PoseStamped>,
+    pedals_pub: Publisher<OperatorInput>,
+    depth_pub: Option<Publisher<Image>>,
+    truth_pose_pub: Publisher<PoseStamped>,
+    truth_joints_pub: Publisher<JointState>,
+    pedals_due: Periodic,
+    camera_due: Periodic,
+    truth_due: Periodic,
+    /// Node-clock time of sim time 0.
+    start_s: Option<f64>,
+    /// Sim time of the next motion-capture sample.
+    next_marker_s: Option<f64>,
+    counters: LocalSimCounters,
+    /// Wall time of the last depth render, µs.
+    last_render_us: u64,
+    last_error: String,
+}
+
+impl std::fmt::Debug for LocalSimNode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LocalSimNode")
+            .field("counters", &self.counters)
+            .finish_non_exhaustive()
+    }
+}
+
+fn stamp(now_s: f64) -> Time {
+    // Seconds since the epoch: far inside the i64 ns range.
+    #[allow(clippy::cast_possible_truncation)]
+    Time::from_nanos((now_s * 1e9) as i64)
+}
+
+impl LocalSimNode {
+    /// Builds the world and declares the devices on `bus`.
+    ///
+    /// # Errors
+    /// World or safety configuration errors; bus declarations.
+    pub async fn new(cfg: &LocalSimConfig, bus: &Bus) -> anyhow::Result<Self> {
+        let world = OperatorWorld::new(cfg.operator_site.clone())?;
+        let chain = world.ur5_chain().clone();
+        let world = std::sync::Arc::new(std::sync::Mutex::new(world));
+        let safety = ArmSafety::new(chain, cfg.safety.ur5.clone())?;
+        let camera = &cfg.operator_site.camera;
+        tracing::info!(task = cfg.operator_site.task.name(), ur5_from = %cfg.safety.ur5_controller_node,
+            "operator-site simulator running in real time");
+        Ok(Self {
+            period: Duration::from_secs_f64(1.0 / cfg.operator_site.mocap.rate_hz),
+            ur5: SafeArm::new(SimUr5::new(world.clone()), safety),
+            world,
+            ur5_endpoint: ArmEndpoint::new(bus, &UR5_ARM, &cfg.safety.ur5_controller_node).await?,
+            marker_pub: bus.publisher(&topics::HW_MOCAP_MARKER).await?,
+            pedals_pub: bus.publisher(&topics::HW_PEDALS).await?,
+            depth_pub: if camera.enabled {
+                Some(bus.publisher(&topics::HAND_DEPTH).await?)
+            } else {
+                None
+            },
+            truth_pose_pub: bus.publisher(&topics::SIM_OPERATOR_HAND_POSE).await?,
+            truth_joints_pub: bus.publisher(&topics::SIM_OPERATOR_SHADOW_JOINTS).await?,
+            pedals_due: Periodic::at_rate(cfg.pedal_rate_hz),
+            camera_due: Periodic::at_rate(camera.rate_hz),
+            truth_due: Periodic::at_rate(cfg.truth_rate_hz),
+            start_s: None,
+            next_marker_s: None,
+            counters: LocalSimCounters::default(),
+            last_render_us: 0,
+            last_error: String::new(),
+        })
+    }
+
+    /// The world (ground truth).
+    pub fn world(&self) -> &SharedOperatorWorld {
+        &self.world
+    }
+
+    /// Counters so far.
+    pub fn sim_counters(&self) -> LocalSimCounters {
+        self.counters
+    }
+
+    fn fail(&mut self, what: &str, e: impl std::fmt::Display) {
+        self.counters.hardware_errors += 1;
+        self.last_error = format!("{what}: {e}");
+    }
+
+    fn pose_stamped(now_s: f64, frame: &str, pose: &Isometry3<f64>) -> Option<PoseStamped> {
+        pose_msg(pose).map(|pose| PoseStamped {
+            header: Header::new(stamp(now_s), frame),
+            pose,
+        })
+    }
+
+    fn publish_depth(&mut self, world: &mut OperatorWorld, now_s: f64) -> anyhow::Result<()> {
+        let Some(publisher) = &self.depth_pub else {
+            return Ok(());
+        };
+        let started = std::time::Instant::now();
+        let view = world.hand_in_view()?;
+        let k = world.intrinsics();
+        let depth = world.render_depth()?;
+        let image = Image::depth_mm(
+            Header::new(stamp(now_s), "camera_optical_frame"),
+            k.width(),
+            k.height(),
+            depth,
+        );
+        publisher.put(&image)?;
+        self.last_render_us = u64::try_from(started.elapsed().as_micros()).unwrap_or(u64::MAX);
+        self.counters.depth_frames += 1;
+        if view.fully {
+            self.counters.frames_hand_fully_in_view += 1;
+        }
+        if view.keypoints == 0 {
+            self.counters.frames_hand_out_of_view += 1;
+        }
+        // The true fingers at the capture time of this frame.
+        let joints = world.shadow_joints()?;
+        self.truth_joints_pub.put(&JointState {
+            header: Header::new(stamp(now_s), ""),
+            name: SHADOW_FINGER_JOINTS
+                .iter()
+                .map(|s| (*s).to_owned())
+                .collect(),
+            position: joints.to_vec(),
+            velocity: vec![],
+            effort: vec![],
+        })?;
+        Ok(())
+    }
+}
+
+impl Node for LocalSimNode {
+    fn period(&self) -> Duration {
+        self.period
+    }
+
+    fn tick(&mut self, now_s: f64) {
+        // The camera arm's command, through the safety layer (a period without one is
+        // filtered too: the command timeout).
+        let ur5 = match self.ur5_endpoint.take_command() {
+            Some(c) => self.ur5.write(now_s, &c),
+            None => self.ur5.idle(now_s),
+        };
+        if let Err(e) = ur5 {
+            self.fail("ur5", e);
+        }
+        let start = *self.start_s.get_or_insert(now_s);
+        let world = self.world.clone();
+        let Ok(mut world) = world.lock() else {
+            self.fail("world", "lock poisoned");
+            return;
+        };
+        // Catch up with the clock (at most 0.1 s per tick after a stall).
+        let lag = (now_s - start) - world.time_s();
+        if lag > 0.0 {
+            world.step(lag.min(0.1));
+        }
+        // Motion capture: every sample due since the last tick, each stamped with its
+        // own capture time (a late tick does not change the capture rate).
+        let period = world.mocap_period_s();
+        let sim_now = world.time_s();
+        let next = self.next_marker_s.get_or_insert(sim_now);
+        let mut due = Vec::new();
+        while *next <= sim_now + 1e-9 {
+            due.push(*next);
+            *next += period;
+        }
+        // After a long stall, only the last 0.1 s of samples are sent.
+        let skip = due.len().saturating_sub((0.1 / period).ceil() as usize);
+        for t in due.into_iter().skip(skip) {
+            let capture_s = start + t;
+            match world.measure_marker_at(t) {
+                MocapReading::Marker { pose, glitch } => {
+                    self.counters.marker_samples += 1;
+                    if glitch {
+                        self.counters.marker_glitches += 1;
+                    }
+                    if let Some(msg) = Self::pose_stamped(capture_s, "mocap", &pose)
+                        && let Err(e) = self.marker_pub.put(&msg)
+                    {
+                        self.fail("mocap", e);
+                    }
+                }
+                MocapReading::Dropout => self.counters.marker_dropouts += 1,
+            }
+        }
+        // The UR5's encoders, stamped with the node clock as a driver would.
+        let mut state = world.ur5_state();
+        state.time_s = now_s;
+        if let Err(e) = self.ur5_endpoint.publish_state(&state) {
+            self.fail("ur5 state", e);
+        }
+        if self.pedals_due.due(now_s) {
+            let p = world.pedals();
+            let msg = OperatorInput {
+                header: Header::new(stamp(now_s), ""),
+                clutch: p.clutch,
+                enable: p.enable,
+                camera_stop: p.camera_stop,
+                motion_scale: p.motion_scale,
+            };
+            if let Err(e) = self.pedals_pub.put(&msg) {
+                self.fail("pedals", e);
+            }
+        }
+        if self.truth_due.due(now_s)
+            && let Some(msg) = Self::pose_stamped(now_s, "ur5_base_link", &world.hand_pose())
+            && let Err(e) = self.truth_pose_pub.put(&msg)
+        {
+            self.fail("ground truth", e);
+        }
+        if self.camera_due.due(now_s)
+            && let Err(e) = self.publish_depth(&mut world, now_s)
+        {
+            self.fail("depth camera", e);
+        }
+    }
+
+    fn state(&self) -> Lifecycle {
+        Lifecycle::Active
+    }
+
+    fn counters(&self) -> Vec<(String, u64)> {
+        let (sim_ms, reps) = self
+            .world
+            .lock()
+            .map(|w| {
+                // Non-negative and far below 2^64 ms.
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                let ms = (w.time_s() * 1e3) as u64;
+                (ms, w.repetitions_done())
+            })
+            .unwrap_or((0, 0));
+        let c = &self.counters;
+        let mut out = vec![
+            ("sim.time_ms".to_owned(), sim_ms),
+            ("sim.task_repetitions".to_owned(), reps),
+            ("sim.hardware_errors".to_owned(), c.hardware_errors),
+            ("mocap.samples".to_owned(), c.marker_samples),
+            ("mocap.dropouts".to_owned(), c.marker_dropouts),
+            ("mocap.glitches".to_owned(), c.marker_glitches),
+            ("camera.frames".to_owned(), c.depth_frames),
+            (
+                "camera.frames_hand_fully_in_view".to_owned(),
+                c.frames_hand_fully_in_view,
+            ),
+            (
+                "camera.frames_hand_out_of_view".to_owned(),
+                c.frames_hand_out_of_view,
+            ),
+            ("camera.render_us".to_owned(), self.last_render_us),
+        ];
+        out.extend(self.ur5_endpoint.counters());
+        out.extend(self.ur5.safety().counters().named("safety.ur5"));
+        out
+    }
+
+    fn last_error(&self) -> String {
+        if self.last_error.is_empty() {
+            self.ur5_endpoint.last_error().to_owned()
+        } else {
+            self.last_error.clone()
+        }
+    }
+
+    /// The UR5 brakes (zero velocity).
+    fn shutdown(&mut self, now_s: f64) {
+        if let Err(e) = self.ur5.write(now_s, &ArmCommand::stop()) {
+            tracing::warn!("stopping the UR5: {e}");
+        }
+    }
+}
+
+/// Runs the simulator on the system clock until `duration` elapses (forever if `None`)
+/// or SIGINT/SIGTERM.
+///
+/// # Errors
+/// Bus or configuration errors.
+pub async fn run(cfg: LocalSimConfig, duration: Option<Duration>) -> anyhow::Result<FinalReport> {
+    let bus = Bus::open(&cfg.node_name, &cfg.bus).await?;
+    let node = LocalSimNode::new(&cfg, &bus).await?;
+    teleop_node::run(bus, node, teleop_node::stop_signal(duration)).await
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_config_is_valid_and_fields_are_named() {
+        LocalSimConfig::default().validate().expect("valid");
+        let mut bad = LocalSimConfig::default();
+        bad.operator_site.mocap.rate_hz = 0.0;
+        assert!(bad.validate().unwrap_err().contains("mocap.rate_hz"));
+        let typo = toml::from_str::<LocalSimConfig>("[operator_site]\ntaks = \"pouring\"\n")
+            .expect_err("unknown field");
+        assert!(typo.to_string().contains("taks"), "{typo}");
+        let cfg: LocalSimConfig =
+            toml::from_str("[operator_site]\ntask = \"pouring\"\n").expect("parses");
+        assert_eq!(cfg.operator_site.task.name(), "pouring");
+    }
+}

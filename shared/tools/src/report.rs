@@ -1,0 +1,746 @@
+//! The end-of-run report of `teleop launch`: what the closed loop did, measured against
+//! the simulation's ground truth, from what crossed the bus during the run.
+//!
+//! * **Latency per stage**, p50/p99 (receive time at the launcher minus the sample's
+//!   header stamp, which every stage sets to the capture time of what it carries):
+//!   motion capture -> wrist pose, camera pose, depth frame -> finger targets, robot
+//!   feedback; plus the stages hand inference measures itself (from its status).
+//! * **UR5 camera tracking error**: the camera's pose (forward kinematics of the
+//!   measured UR5 joints, as the camera arm publishes it) against the goal the camera
+//!   arm aims for, computed from the operator's TRUE hand pose at the same time.
+//! * **Hand in view**: the fraction of depth frames in which every keypoint of the
+//!   operator's hand was inside the image (from the simulator's ground truth).
+//! * **PR2 end-effector error** against the scaled operator motion: while the clutch is
+//!   held, the PR2 palm's displacement since the press against the true hand's
+//!   displacement times the motion scale (base-aligned relative control).
+//! * **Hand joint error**: each published finger target against the true fingers
+//!   retargeted to the Shadow hand for the same depth frame (paired by stamp).
+//! * **Contact forces**: the fingertip sensors' readings.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use anyhow::Context;
+use hdrhistogram::Histogram;
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
+use serde::Serialize;
+use teleop_bus::{Bus, Subscriber};
+use teleop_hardware::wire;
+use teleop_interfaces::joints::PR2_ARM_JOINTS;
+use teleop_interfaces::topics;
+use teleop_kinematics::FixedChain;
+use teleop_local_site::camera_arm::{CameraArmConfig, camera_goal};
+use teleop_msgs::{FingertipPressures, JointState, NodeStatus, OperatorInput, Pose, PoseStamped};
+
+/// One latency stage.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct StageLatency {
+    pub stage: String,
+    pub samples: u64,
+    pub p50_ms: f64,
+    pub p99_ms: f64,
+    pub max_ms: f64,
+}
+
+/// Summary of a series of errors.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq, Default)]
+pub struct ErrorSummary {
+    pub samples: usize,
+    pub mean: f64,
+    pub p50: f64,
+    pub p99: f64,
+    pub max: f64,
+}
+
+impl ErrorSummary {
+    fn of(values: &[f64]) -> Self {
+        if values.is_empty() {
+            return Self::default();
+        }
+        let mut v = values.to_vec();
+        v.sort_by(f64::total_cmp);
+        let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
+        Self {
+            samples: v.len(),
+            mean: v.iter().sum::<f64>() / v.len() as f64,
+            p50: at(0.5),
+            p99: at(0.99),
+            max: v[v.len() - 1],
+        }
+    }
+}
+
+/// The report.
+#[derive(Debug, Clone, Serialize, PartialEq, Default)]
+pub struct RunReport {
+    pub duration_s: f64,
+    pub task: String,
+    pub latency: Vec<StageLatency>,
+    /// Hand inference's own stage timings (its status counters), µs.
+    pub hand_inference_stages_us: BTreeMap<String, u64>,
+    /// Camera position error against its goal, m.
+    pub camera_position_error_m: ErrorSummary,
+    /// Camera viewing-direction error against its goal, deg.
+    pub camera_direction_error_deg: ErrorSummary,
+    pub depth_frames: u64,
+    pub frames_hand_fully_in_view: u64,
+    pub fraction_hand_fully_in_view: f64,
+    /// PR2 palm position error against the scaled operator motion while clutched, m.
+    pub pr2_position_error_m: ErrorSummary,
+    /// Mean absolute error per axis (x, y, z) while clutched, m (the thesis's L1).
+    pub pr2_mean_abs_error_xyz_m: [f64; 3],
+    pub clutch_engagements: u64,
+    pub finger_target_frames: usize,
+    /// Mean absolute joint error per frame, rad.
+    pub hand_joint_mean_error_rad: ErrorSummary,
+    /// Fraction of frames whose largest joint error is within 0.1 / 0.2 rad.
+    pub hand_frames_max_error_within_0_1_rad: f64,
+    pub hand_frames_max_error_within_0_2_rad: f64,
+    /// Largest and mean fingertip force per finger (ff, mf, rf, lf, th), N.
+    pub fingertip_force_max_n: [f64; 5],
+    pub fingertip_force_mean_n: [f64; 5],
+    /// Time series for the plots: (t, camera position error m).
+    #[serde(skip)]
+    pub camera_series: Vec<(f64, f64)>,
+    /// (t, PR2 position error m).
+    #[serde(skip)]
+    pub pr2_series: Vec<(f64, f64)>,
+    /// (t, hand joint mean error rad).
+    #[serde(skip)]
+    pub hand_series: Vec<(f64, f64)>,
+    /// Per stage, sorted latencies (ms), for the CDF plot.
+    #[serde(skip)]
+    pub latency_samples: Vec<(String, Vec<f64>)>,
+}
+
+fn pose_of(p: &Pose) -> Option<Isometry3<f64>> {
+    let q = Quaternion::new(
+        p.orientation.w,
+        p.orientation.x,
+        p.orientation.y,
+        p.orientation.z,
+    );
+    if !p.is_finite() || (q.norm() - 1.0).abs() > 0.01 {
+        return None;
+    }
+    Some(Isometry3::from_parts(
+        Translation3::new(p.position.x, p.position.y, p.position.z),
+        UnitQuaternion::from_quaternion(q),
+    ))
+}
+
+fn secs(t: &teleop_msgs::Time) -> f64 {
+    t.as_secs_f64()
+}
+
+/// A latency stage being recorded.
+#[derive(Debug)]
+struct Stage {
+    name: &'static str,
+    hist: Option<Histogram<u64>>,
+    values_ms: Vec<f64>,
+}
+
+impl Stage {
+    fn new(name: &'static str) -> Self {
+        Self {
+            name,
+            hist: Histogram::new_with_bounds(1, 60_000_000, 3).ok(),
+            values_ms: Vec::new(),
+        }
+    }
+    fn add(&mut self, receive_s: f64, stamp_s: f64) {
+        let us = ((receive_s - stamp_s) * 1e6).max(1.0);
+        if let Some(h) = &mut self.hist {
+            // Clamped into the histogram's range.
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            let _ = h.record((us as u64).clamp(1, 60_000_000));
+        }
+        if self.values_ms.len() < 200_000 {
+            self.values_ms.push(us / 1000.0);
+        }
+    }
+    fn summary(&self) -> StageLatency {
+        let (n, p50, p99, max) = self.hist.as_ref().map_or((0, 0.0, 0.0, 0.0), |h| {
+            (
+                h.len(),
+                h.value_at_quantile(0.5) as f64 / 1000.0,
+                h.value_at_quantile(0.99) as f64 / 1000.0,
+                h.max() as f64 / 1000.0,
+            )
+        });
+        StageLatency {
+            stage: self.name.to_owned(),
+            samples: n,
+            p50_ms: p50,
+            p99_ms: p99,
+            max_ms: max,
+        }
+    }
+}
+
+/// Clutch state of the relative control.
+#[derive(Debug, Clone, Copy)]
+struct Engaged {
+    human_ref: Vector3<f64>,
+    robot_ref: Option<Vector3<f64>>,
+    scale: f64,
+}
+
+/// Collects the run from the bus.
+#[derive(Debug)]
+pub struct Recorder {
+    start_s: f64,
+    truth_pose: Subscriber<PoseStamped>,
+    truth_joints: Subscriber<JointState>,
+    targets: Subscriber<JointState>,
+    camera: Subscriber<PoseStamped>,
+    wrist: Subscriber<PoseStamped>,
+    pr2: Subscriber<JointState>,
+    input: Subscriber<OperatorInput>,
+    tips: Subscriber<FingertipPressures>,
+    pr2_chain: FixedChain<7>,
+    camera_cfg: CameraArmConfig,
+    /// True hand poses by time (node clock), the last 5 s.
+    truth: Vec<(f64, Isometry3<f64>)>,
+    /// True Shadow joints by capture stamp (ns), the last few hundred frames.
+    truth_joints_by_stamp: BTreeMap<i64, Vec<f64>>,
+    pending_targets: Vec<(i64, f64, Vec<f64>)>,
+    engaged: Option<Engaged>,
+    stages: Vec<Stage>,
+    report: RunReport,
+    pr2_abs: [f64; 3],
+    pr2_n: usize,
+    pr2_errors: Vec<f64>,
+    camera_pos: Vec<f64>,
+    camera_dir: Vec<f64>,
+    hand_errors: Vec<f64>,
+    hand_within: [usize; 2],
+    force_sum: [f64; 5],
+    force_n: usize,
+}
+
+const STAGE_WRIST: usize = 0;
+const STAGE_CAMERA: usize = 1;
+const STAGE_TARGETS: usize = 2;
+const STAGE_PR2: usize = 3;
+const STAGE_TIPS: usize = 4;
+
+impl Recorder {
+    /// Subscribes to everything the report needs.
+    ///
+    /// # Errors
+    /// Bus declarations; the PR2 model.
+    pub async fn new(bus: &Bus, task: &str) -> anyhow::Result<Self> {
+        Ok(Self {
+            start_s: bus.now_s(),
+            truth_pose: bus.subscriber(&topics::SIM_OPERATOR_HAND_POSE).await?,
+            truth_joints: bus.subscriber(&topics::SIM_OPERATOR_SHADOW_JOINTS).await?,
+            targets: bus.subscriber(&topics::HAND_JOINT_TARGETS).await?,
+            camera: bus.subscriber(&topics::CAMERA_POSE).await?,
+            wrist: bus.subscriber(&topics::WRIST_POSE).await?,
+            pr2: bus.subscriber(&topics::PR2_JOINT_STATES).await?,
+            input: bus.subscriber(&topics::OPERATOR_INPUT).await?,
+            tips: bus.subscriber(&topics::FINGERTIP_PRESSURES).await?,
+            pr2_chain: teleop_kinematics::robots::pr2_arm_chain()?,
+            camera_cfg: CameraArmConfig::default(),
+            truth: Vec::new(),
+            truth_joints_by_stamp: BTreeMap::new(),
+            pending_targets: Vec::new(),
+            engaged: None,
+            stages: vec![
+                Stage::new("motion capture -> wrist pose"),
+                Stage::new("UR5 joints -> camera pose"),
+                Stage::new("depth frame -> finger targets"),
+                Stage::new("PR2 joints -> feedback"),
+                Stage::new("fingertip sensors -> feedback"),
+            ],
+            report: RunReport {
+                task: task.to_owned(),
+                ..RunReport::default()
+            },
+            pr2_abs: [0.0; 3],
+            pr2_n: 0,
+            pr2_errors: Vec::new(),
+            camera_pos: Vec::new(),
+            camera_dir: Vec::new(),
+            hand_errors: Vec::new(),
+            hand_within: [0; 2],
+            force_sum: [0.0; 5],
+            force_n: 0,
+        })
+    }
+
+    /// The true hand pose at `t_s` (linear/spherical interpolation), if recorded.
+    fn truth_at(&self, t_s: f64) -> Option<Isometry3<f64>> {
+        let i = self.truth.partition_point(|(t, _)| *t < t_s);
+        if i == 0 || i >= self.truth.len() {
+            // Only a sample within 20 ms of the end is used as it is.
+            return self
+                .truth
+                .last()
+                .filter(|(t, _)| (t - t_s).abs() < 0.02)
+                .map(|(_, p)| *p);
+        }
+        let (t0, a) = self.truth[i - 1];
+        let (t1, b) = self.truth[i];
+        let s = ((t_s - t0) / (t1 - t0)).clamp(0.0, 1.0);
+        Some(Isometry3::from_parts(
+            Translation3::from(a.translation.vector.lerp(&b.translation.vector, s)),
+            a.rotation.slerp(&b.rotation, s),
+        ))
+    }
+
+    /// Takes everything that arrived since the last call.
+    pub fn poll(&mut self) {
+        while let Some(r) = self.truth_pose.try_recv() {
+            if let Some(p) = pose_of(&r.msg.pose) {
+                self.truth.push((secs(&r.msg.header.stamp), p));
+            }
+        }
+        if let Some((t_last, _)) = self.truth.last().copied() {
+            let keep = self.truth.partition_point(|(t, _)| *t < t_last - 5.0);
+            self.truth.drain(..keep);
+        }
+        while let Some(r) = self.truth_joints.try_recv() {
+            self.truth_joints_by_stamp
+                .insert(r.msg.header.stamp.as_nanos(), r.msg.position.clone());
+        }
+        while self.truth_joints_by_stamp.len() > 600 {
+            self.truth_joints_by_stamp.pop_first();
+        }
+        while let Some(r) = self.wrist.try_recv() {
+            self.stages[STAGE_WRIST].add(r.receive_time_s(), secs(&r.msg.header.stamp));
+        }
+        while let Some(r) = self.camera.try_recv() {
+            let t = secs(&r.msg.header.stamp);
+            self.stages[STAGE_CAMERA].add(r.receive_time_s(), t);
+            if let (Some(cam), Some(hand)) = (pose_of(&r.msg.pose), self.truth_at(t)) {
+                let c = &self.camera_cfg;
+                let goal = camera_goal(
+                    &hand,
+                    c.standoff_m,
+                    c.side,
+                    &Vector3::from(c.look_at_in_hand_m),
+                );
+                let e = (cam.translation.vector - goal.translation.vector).norm();
+                let dir = (cam.rotation * Vector3::z())
+                    .angle(&(goal.rotation * Vector3::z()))
+                    .to_degrees();
+                self.camera_pos.push(e);
+                self.camera_dir.push(dir);
+                self.report.camera_series.push((t - self.start_s, e));
+            }
+        }
+        while let Some(r) = self.input.try_recv() {
+            let m = &r.msg;
+            let on = m.clutch && m.enable;
+            match (on, self.engaged) {
+                (true, None) => {
+                    if let Some(h) = self.truth_at(secs(&m.header.stamp)) {
+                        self.engaged = Some(Engaged {
+                            human_ref: h.translation.vector,
+                            robot_ref: None,
+                            scale: m.motion_scale,
+                        });
+                        self.report.clutch_engagements += 1;
+                    }
+                }
+                (false, Some(_)) => self.engaged = None,
+                _ => {}
+            }
+        }
+        while let Some(r) = self.pr2.try_recv() {
+            let t = secs(&r.msg.header.stamp);
+            self.stages[STAGE_PR2].add(r.receive_time_s(), t);
+            let Ok(state) = wire::arm_state(&PR2_ARM_JOINTS, &r.msg) else {
+                continue;
+            };
+            let palm = self
+                .pr2_chain
+                .end_pose(&state.position_rad)
+                .translation
+                .vector;
+            let hand = self.truth_at(t);
+            if let (Some(eng), Some(hand)) = (&mut self.engaged, hand) {
+                let robot_ref = *eng.robot_ref.get_or_insert(palm);
+                let expected = robot_ref + (hand.translation.vector - eng.human_ref) * eng.scale;
+                let err = palm - expected;
+                for (a, e) in self.pr2_abs.iter_mut().zip(err.iter()) {
+                    *a += e.abs();
+                }
+                self.pr2_n += 1;
+                self.pr2_errors.push(err.norm());
+                self.report.pr2_series.push((t - self.start_s, err.norm()));
+            }
+        }
+        while let Some(r) = self.targets.try_recv() {
+            let stamp = r.msg.header.stamp.as_nanos();
+            self.stages[STAGE_TARGETS].add(r.receive_time_s(), secs(&r.msg.header.stamp));
+            self.pending_targets
+                .push((stamp, secs(&r.msg.header.stamp), r.msg.position));
+        }
+        // Pair targets with the truth of their frame (the truth may arrive later).
+        let truth = &self.truth_joints_by_stamp;
+        let mut unmatched = Vec::new();
+        for (stamp, t, q) in self.pending_targets.drain(..) {
+            match truth.get(&stamp) {
+                Some(truth_q) if truth_q.len() == q.len() && !q.is_empty() => {
+                    let errs: Vec<f64> =
+                        q.iter().zip(truth_q).map(|(a, b)| (a - b).abs()).collect();
+                    let mean = errs.iter().sum::<f64>() / errs.len() as f64;
+                    let max = errs.iter().copied().fold(0.0, f64::max);
+                    self.hand_errors.push(mean);
+                    self.hand_within[0] += usize::from(max <= 0.1);
+                    self.hand_within[1] += usize::from(max <= 0.2);
+                    self.report.hand_series.push((t - self.start_s, mean));
+                }
+                _ if truth.first_key_value().is_some_and(|(k, _)| *k > stamp) => {}
+                _ => unmatched.push((stamp, t, q)),
+            }
+        }
+        unmatched.retain(|(stamp, _, _)| {
+            truth
+                .last_key_value()
+                .is_none_or(|(k, _)| *k < stamp + 1_000_000_000)
+        });
+        self.pending_targets = unmatched;
+        while let Some(r) = self.tips.try_recv() {
+            self.stages[STAGE_TIPS].add(r.receive_time_s(), secs(&r.msg.header.stamp));
+            let f = [r.msg.ff, r.msg.mf, r.msg.rf, r.msg.lf, r.msg.th];
+            if f.iter().all(|v| v.is_finite()) {
+                for ((max, sum), v) in self
+                    .report
+                    .fingertip_force_max_n
+                    .iter_mut()
+                    .zip(&mut self.force_sum)
+                    .zip(f)
+                {
+                    *max = max.max(v);
+                    *sum += v;
+                }
+                self.force_n += 1;
+            }
+        }
+    }
+
+    /// The report, with the final statuses of the nodes (`local_sim`'s frame counts,
+    /// hand inference's stage timings).
+    pub fn finish(mut self, now_s: f64, finals: &BTreeMap<String, NodeStatus>) -> RunReport {
+        self.poll();
+        let mut r = self.report;
+        r.duration_s = now_s - self.start_s;
+        r.latency = self.stages.iter().map(Stage::summary).collect();
+        r.latency_samples = self
+            .stages
+            .iter_mut()
+            .map(|s| {
+                s.values_ms.sort_by(f64::total_cmp);
+                (s.name.to_owned(), std::mem::take(&mut s.values_ms))
+            })
+            .collect();
+        r.camera_position_error_m = ErrorSummary::of(&self.camera_pos);
+        r.camera_direction_error_deg = ErrorSummary::of(&self.camera_dir);
+        r.pr2_position_error_m = ErrorSummary::of(&self.pr2_errors);
+        if self.pr2_n > 0 {
+            r.pr2_mean_abs_error_xyz_m = self.pr2_abs.map(|a| a / self.pr2_n as f64);
+        }
+        r.finger_target_frames = self.hand_errors.len();
+        r.hand_joint_mean_error_rad = ErrorSummary::of(&self.hand_errors);
+        if !self.hand_errors.is_empty() {
+            let n = self.hand_errors.len() as f64;
+            r.hand_frames_max_error_within_0_1_rad = self.hand_within[0] as f64 / n;
+            r.hand_frames_max_error_within_0_2_rad = self.hand_within[1] as f64 / n;
+        }
+        if self.force_n > 0 {
+            r.fingertip_force_mean_n = self.force_sum.map(|s| s / self.force_n as f64);
+        }
+        let counter = |node: &str, name: &str| {
+            finals.get(node).and_then(|s| {
+                s.counter_names
+                    .iter()
+                    .position(|n| n == name)
+                    .and_then(|i| s.counter_values.get(i).copied())
+            })
+        };
+        r.depth_frames = counter("local_sim", "camera.frames").unwrap_or(0);
+        r.frames_hand_fully_in_view =
+            counter("local_sim", "camera.frames_hand_fully_in_view").unwrap_or(0);
+        if r.depth_frames > 0 {
+            r.fraction_hand_fully_in_view =
+                r.frames_hand_fully_in_view as f64 / r.depth_frames as f64;
+        }
+        if let Some(s) = finals.get(teleop_interfaces::nodes::HAND_INFERENCE) {
+            for (n, v) in s.counter_names.iter().zip(&s.counter_values) {
+                if n.starts_with("latency.") {
+                    r.hand_inference_stages_us.insert(n.clone(), *v);
+                }
+            }
+        }
+        r
+    }
+}
+
+impl RunReport {
+    /// The report as text.
+    #[must_use]
+    pub fn text(&self) -> String {
+        use std::fmt::Write;
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "== teleop launch: end-of-run report ({} task, {:.1} s)",
+            self.task, self.duration_s
+        );
+        let _ = writeln!(
+            s,
+            "latency (capture -> received here)      samples    p50 ms    p99 ms    max ms"
+        );
+        for l in &self.latency {
+            let _ = writeln!(
+                s,
+                "  {:<38} {:>7} {:>9.2} {:>9.2} {:>9.2}",
+                l.stage, l.samples, l.p50_ms, l.p99_ms, l.max_ms
+            );
+        }
+        if !self.hand_inference_stages_us.is_empty() {
+            let stages: Vec<String> = self
+                .hand_inference_stages_us
+                .iter()
+                .filter(|(k, _)| !k.ends_with(".max"))
+                .map(|(k, v)| {
+                    format!(
+                        "{}={:.2} ms",
+                        k.trim_start_matches("latency."),
+                        *v as f64 / 1000.0
+                    )
+                })
+                .collect();
+            let _ = writeln!(s, "  hand inference: {}", stages.join(", "));
+        }
+        let c = &self.camera_position_error_m;
+        let _ = writeln!(
+            s,
+            "UR5 camera tracking error: position mean {:.1} cm, p99 {:.1} cm, max {:.1} cm; view direction mean {:.1} deg ({} samples)",
+            c.mean * 100.0,
+            c.p99 * 100.0,
+            c.max * 100.0,
+            self.camera_direction_error_deg.mean,
+            c.samples
+        );
+        let _ = writeln!(
+            s,
+            "hand fully in view: {:.1} % of {} depth frames",
+            self.fraction_hand_fully_in_view * 100.0,
+            self.depth_frames
+        );
+        let p = &self.pr2_position_error_m;
+        let [x, y, z] = self.pr2_mean_abs_error_xyz_m;
+        let _ = writeln!(
+            s,
+            "PR2 end-effector error vs the scaled operator motion (clutched, {} engagements): mean {:.1} cm, p99 {:.1} cm; mean |error| x {:.1} / y {:.1} / z {:.1} cm ({} samples)",
+            self.clutch_engagements,
+            p.mean * 100.0,
+            p.p99 * 100.0,
+            x * 100.0,
+            y * 100.0,
+            z * 100.0,
+            p.samples
+        );
+        let h = &self.hand_joint_mean_error_rad;
+        let _ = writeln!(
+            s,
+            "hand joint error vs ground truth: mean {:.3} rad, p99 {:.3} rad over {} frames; max error <= 0.1 rad in {:.1} %, <= 0.2 rad in {:.1} % of frames",
+            h.mean,
+            h.p99,
+            self.finger_target_frames,
+            self.hand_frames_max_error_within_0_1_rad * 100.0,
+            self.hand_frames_max_error_within_0_2_rad * 100.0
+        );
+        let _ = writeln!(
+            s,
+            "fingertip forces (ff mf rf lf th): max {:.2} {:.2} {:.2} {:.2} {:.2} N, mean {:.2} {:.2} {:.2} {:.2} {:.2} N",
+            self.fingertip_force_max_n[0],
+            self.fingertip_force_max_n[1],
+            self.fingertip_force_max_n[2],
+            self.fingertip_force_max_n[3],
+            self.fingertip_force_max_n[4],
+            self.fingertip_force_mean_n[0],
+            self.fingertip_force_mean_n[1],
+            self.fingertip_force_mean_n[2],
+            self.fingertip_force_mean_n[3],
+            self.fingertip_force_mean_n[4],
+        );
+        s
+    }
+
+    /// Writes the report as JSON.
+    ///
+    /// # Errors
+    /// File errors.
+    pub fn write_json(&self, path: &Path) -> anyhow::Result<()> {
+        let text = serde_json::to_string_pretty(self)?;
+        std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+    }
+
+    /// Draws the tracking and latency plots (PNG).
+    ///
+    /// # Errors
+    /// Font or drawing errors.
+    pub fn write_png(&self, path: &Path) -> anyhow::Result<()> {
+        use plotters::prelude::*;
+        teleop_node::plot::register_fonts()?;
+        let root = BitMapBackend::new(path, (1400, 1000)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let root = root
+            .titled(
+                &format!(
+                    "teleop launch: {} task, {:.0} s",
+                    self.task, self.duration_s
+                ),
+                ("sans-serif", 28),
+            )
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        let panels = root.split_evenly((2, 2));
+        let t_max = self.duration_s.max(1.0);
+        // (title, y label, data, scale to the label's unit, colour)
+        type Panel<'a> = (&'a str, &'a str, &'a [(f64, f64)], f64, RGBColor);
+        let series: [Panel<'_>; 3] = [
+            (
+                "UR5 camera position error vs its goal",
+                "error (cm)",
+                &self.camera_series,
+                100.0,
+                BLUE,
+            ),
+            (
+                "PR2 palm error vs scaled operator motion (clutched)",
+                "error (cm)",
+                &self.pr2_series,
+                100.0,
+                RED,
+            ),
+            (
+                "Hand joints: mean |inferred - true| per frame",
+                "error (rad)",
+                &self.hand_series,
+                1.0,
+                GREEN,
+            ),
+        ];
+        for (area, (title, y_label, data, scale, color)) in panels.iter().zip(series) {
+            let y_max = data
+                .iter()
+                .map(|(_, v)| v * scale)
+                .fold(0.0, f64::max)
+                .max(1e-3)
+                * 1.1;
+            let mut chart = ChartBuilder::on(area)
+                .caption(title, ("sans-serif", 20))
+                .margin(12)
+                .x_label_area_size(40)
+                .y_label_area_size(60)
+                .build_cartesian_2d(0.0..t_max, 0.0..y_max)
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
+            chart
+                .configure_mesh()
+                .x_desc("time since launch (s)")
+                .y_desc(y_label)
+                .x_label_formatter(&teleop_node::plot::tick_label)
+                .y_label_formatter(&teleop_node::plot::tick_label)
+                .draw()
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
+            chart
+                .draw_series(LineSeries::new(
+                    data.iter().map(|(t, v)| (*t, v * scale)),
+                    color,
+                ))
+                .map_err(|e| anyhow::anyhow!("{e}"))?
+                .label(format!("{} samples", data.len()))
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
+        }
+        // Latency CDFs.
+        let x_max = self
+            .latency_samples
+            .iter()
+            .filter_map(|(_, v)| v.get((v.len().saturating_sub(1) * 99) / 100).copied())
+            .fold(1.0, f64::max)
+            * 1.2;
+        let mut chart = ChartBuilder::on(&panels[3])
+            .caption(
+                "Latency per stage (capture -> received), CDF",
+                ("sans-serif", 20),
+            )
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..x_max, 0.0..1.0)
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        chart
+            .configure_mesh()
+            .x_desc("latency (ms)")
+            .y_desc("fraction of samples")
+            .x_label_formatter(&teleop_node::plot::tick_label)
+            .y_label_formatter(&teleop_node::plot::tick_label)
+            .draw()
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        for (i, (name, v)) in self.latency_samples.iter().enumerate() {
+            if v.is_empty() {
+                continue;
+            }
+            let color = Palette99::pick(i).to_rgba();
+            let n = v.len() as f64;
+            let step = (v.len() / 500).max(1);
+            chart
+                .draw_series(LineSeries::new(
+                    v.iter()
+                        .enumerate()
+                        .step_by(step)
+                        .map(|(k, x)| (x.min(x_max), (k + 1) as f64 / n)),
+                    color,
+                ))
+                .map_err(|e| anyhow::anyhow!("{e}"))?
+                .label(name.clone())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::LowerRight)
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        root.present().map_err(|e| anyhow::anyhow!("{e}"))?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn error_summary_of_known_values() {
+        let s = ErrorSummary::of(&[3.0, 1.0, 2.0, 4.0]);
+        assert_eq!(s.samples, 4);
+        assert!((s.mean - 2.5).abs() < 1e-12);
+        assert_eq!(s.max, 4.0);
+        assert_eq!(ErrorSummary::of(&[]), ErrorSummary::default());
+    }
+
+    #[test]
+    fn poses_with_bad_quaternions_are_refused() {
+        let mut p = Pose::default();
+        assert!(pose_of(&p).is_none(), "zero quaternion");
+        p.orientation.w = 1.0;
+        assert!(pose_of(&p).is_some());
+        p.position.x = f64::NAN;
+        assert!(pose_of(&p).is_none());
+    }
+}
