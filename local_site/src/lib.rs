@@ -1,11 +1,17 @@
-//! Operator-site nodes.
+//! Operator-site nodes (the hand-inference node lives in `teleop-hand-inference`, so
+//! ONNX Runtime stays out of this crate's build):
 //!
-//! Today: the wrist tracker node ([`wrist_tracker`]), which publishes the operator's 6D
-//! wrist pose and pedal/switch state from devices behind the operator-site hardware
-//! traits (`teleop_hardware::{WristTracker, OperatorPanel}`). The simulated operator
-//! (`teleop_sim::operator`) knows the true hand pose, so everything downstream can be
-//! measured against ground truth. A real tracker (PhaseSpace, IMU suit) and a real
-//! pedal box slot in behind the same traits.
+//! * [`local_sim`]: the operator-site simulator process, standing in for the devices'
+//!   drivers (motion capture, pedals, the UR5 behind its safety layer, the depth
+//!   camera) over the hardware topics, with the simulation's ground truth;
+//! * [`wrist_tracker`]: the marker pose registered into the operator's hand frame in
+//!   the UR5 base, jump-filtered, and the pedals, through the operator-site hardware
+//!   traits (`teleop_hardware::{WristTracker, OperatorPanel}`);
+//! * [`camera_arm_node`]: the active-vision camera arm on the UR5, around the pure
+//!   control core [`camera_arm`].
+//!
+//! Real devices (PhaseSpace, an IMU suit, a pedal box, a UR5 driver, an SR300 driver)
+//! slot in behind the same traits and topics.
 
 pub mod camera_arm;
 pub mod camera_arm_node;

@@ -90,6 +90,9 @@ pub struct RunReport {
     /// Mean absolute error per axis (x, y, z) while clutched, m (the thesis's L1).
     pub pr2_mean_abs_error_xyz_m: [f64; 3],
     pub clutch_engagements: u64,
+    /// The PR2 arm controller's stops by reason (its `arm.stop.*` counters): a stale
+    /// input or a lost site stops the arm, and the error above then grows.
+    pub pr2_stops: BTreeMap<String, u64>,
     pub finger_target_frames: usize,
     /// Mean absolute joint error per frame, rad.
     pub hand_joint_mean_error_rad: ErrorSummary,
@@ -470,6 +473,15 @@ impl Recorder {
             r.fraction_hand_fully_in_view =
                 r.frames_hand_fully_in_view as f64 / r.depth_frames as f64;
         }
+        if let Some(s) = finals.get("pr2_arm_controller") {
+            for (n, v) in s.counter_names.iter().zip(&s.counter_values) {
+                if let Some(reason) = n.strip_prefix("arm.stop.")
+                    && *v > 0
+                {
+                    r.pr2_stops.insert(reason.to_owned(), *v);
+                }
+            }
+        }
         if let Some(s) = finals.get(teleop_interfaces::nodes::HAND_INFERENCE) {
             for (n, v) in s.counter_names.iter().zip(&s.counter_values) {
                 if n.starts_with("latency.") {
@@ -547,6 +559,14 @@ impl RunReport {
             z * 100.0,
             p.samples
         );
+        if !self.pr2_stops.is_empty() {
+            let stops: Vec<String> = self
+                .pr2_stops
+                .iter()
+                .map(|(k, v)| format!("{k} x{v}"))
+                .collect();
+            let _ = writeln!(s, "  PR2 arm stops: {}", stops.join(", "));
+        }
         let h = &self.hand_joint_mean_error_rad;
         let _ = writeln!(
             s,
@@ -737,6 +757,7 @@ mod tests {
     #[test]
     fn poses_with_bad_quaternions_are_refused() {
         let mut p = Pose::default();
+        p.orientation.w = 0.0;
         assert!(pose_of(&p).is_none(), "zero quaternion");
         p.orientation.w = 1.0;
         assert!(pose_of(&p).is_some());

@@ -10,6 +10,16 @@ use std::process::Command;
 
 use teleop_interfaces::nodes::NODES;
 
+/// One whole system at a time: three at once (24 processes) starve a 2-core machine,
+/// and a starved system stops its robots on stale inputs, as it should.
+static ONE_SYSTEM: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn one_system() -> std::sync::MutexGuard<'static, ()> {
+    ONE_SYSTEM
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
 /// Every node of the table has a summary line: stopped gracefully, its final status
 /// reported, exit status 0.
 fn assert_every_node_stopped_gracefully(stdout: &str) {
@@ -26,6 +36,7 @@ fn assert_every_node_stopped_gracefully(stdout: &str) {
 
 #[test]
 fn launch_runs_the_system_and_stops_it_gracefully_with_a_summary() {
+    let _one = one_system();
     let teleop = Path::new(env!("CARGO_BIN_EXE_teleop"));
     let dir = teleop.parent().unwrap();
     for node in NODES {
@@ -92,6 +103,7 @@ fn launch_runs_the_system_and_stops_it_gracefully_with_a_summary() {
 /// produced a target for nearly every depth frame.
 #[test]
 fn a_task_runs_once_and_ends_with_the_report() {
+    let _one = one_system();
     let teleop = Path::new(env!("CARGO_BIN_EXE_teleop"));
     let dir = std::env::temp_dir().join(format!("teleop-report-test-{}", std::process::id()));
     let out = Command::new(teleop)
@@ -167,6 +179,7 @@ fn a_task_runs_once_and_ends_with_the_report() {
 /// each one gracefully.
 #[test]
 fn ctrl_c_to_the_terminal_group_still_stops_every_node_gracefully() {
+    let _one = one_system();
     use std::os::unix::process::CommandExt;
     let teleop = Path::new(env!("CARGO_BIN_EXE_teleop"));
     let child = Command::new(teleop)
