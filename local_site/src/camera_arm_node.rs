@@ -27,7 +27,6 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 use teleop_bus::{Bus, BusConfig, NodeWatch, Publisher};
 use teleop_collision::{ChainBodies, robots as collision_robots};
@@ -35,7 +34,7 @@ use teleop_hardware::{ArmCommand, ArmHardware, ArmState, wire};
 use teleop_hardware_bus::BusArm;
 use teleop_interfaces::hardware::UR5_ARM;
 use teleop_interfaces::{nodes, topics};
-use teleop_msgs::{Header, JointState, Lifecycle, OperatorInput, Point, Pose, PoseStamped, Time};
+use teleop_msgs::{Header, JointState, Lifecycle, OperatorInput, PoseStamped, Time};
 use teleop_node::source::{self, CommanderConfig};
 use teleop_node::{FinalReport, Node, NodeConfig, SourceLock, check_controller_links};
 
@@ -93,35 +92,7 @@ impl NodeConfig for CameraArmNodeConfig {
     }
 }
 
-/// A pose message as an isometry; the quaternion is taken as sent (the core's jump
-/// filter refuses non-unit or non-finite ones, by name).
-pub fn isometry(p: &Pose) -> Isometry3<f64> {
-    let q = p.orientation;
-    Isometry3::from_parts(
-        Translation3::new(p.position.x, p.position.y, p.position.z),
-        UnitQuaternion::new_unchecked(Quaternion::new(q.w, q.x, q.y, q.z)),
-    )
-}
-
-/// An isometry as a pose message; `None` if any component is not finite.
-pub fn pose_msg(pose: &Isometry3<f64>) -> Option<Pose> {
-    let t = pose.translation.vector;
-    let q = pose.rotation.quaternion();
-    let msg = Pose {
-        position: Point {
-            x: t.x,
-            y: t.y,
-            z: t.z,
-        },
-        orientation: teleop_msgs::Quaternion {
-            x: q.i,
-            y: q.j,
-            z: q.k,
-            w: q.w,
-        },
-    };
-    msg.is_finite().then_some(msg)
-}
+pub use teleop_hardware::wire::{isometry, pose_msg};
 
 /// Seconds since the epoch as a message time, rounded to the nanosecond (so a time read
 /// from a message's stamp maps back onto the same stamp).

@@ -51,7 +51,7 @@ use teleop_control::{RejectionCounts, TransformConfig};
 use teleop_hardware::{HardwareError, OperatorPanel, WristTracker};
 use teleop_hardware_bus::{BusPanel, BusWristTracker};
 use teleop_interfaces::topics;
-use teleop_msgs::{Header, Lifecycle, OperatorInput, Point, Pose, PoseStamped, Quaternion, Time};
+use teleop_msgs::{Header, Lifecycle, OperatorInput, PoseStamped, Time};
 use teleop_node::{FinalReport, Node, NodeConfig, Periodic};
 use teleop_sim::operator::{SimulatedDevices, SimulatedOperator, SimulatedOperatorConfig};
 use teleop_sim::operator_site;
@@ -601,25 +601,7 @@ impl PoseGate {
     }
 }
 
-/// Converts a pose to the message type; `None` if any component is not finite.
-pub fn pose_msg(pose: &Isometry3<f64>) -> Option<Pose> {
-    let t = pose.translation.vector;
-    let q = pose.rotation.quaternion();
-    let msg = Pose {
-        position: Point {
-            x: t.x,
-            y: t.y,
-            z: t.z,
-        },
-        orientation: Quaternion {
-            x: q.i,
-            y: q.j,
-            z: q.k,
-            w: q.w,
-        },
-    };
-    msg.is_finite().then_some(msg)
-}
+pub use teleop_hardware::wire::pose_msg;
 
 /// A wrist pose device as the node reads it.
 pub enum PoseDevice {

@@ -4,14 +4,13 @@
 
 use std::time::Duration;
 
-use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 use teleop_bus::{Bus, BusConfig, NodeWatch};
 use teleop_hardware::ArmHardware;
 use teleop_hardware_bus::BusArm;
 use teleop_interfaces::hardware::PR2_ARM;
 use teleop_interfaces::{nodes, topics};
-use teleop_msgs::{Lifecycle, OperatorInput, Pose, PoseStamped};
+use teleop_msgs::{Lifecycle, OperatorInput, PoseStamped};
 use teleop_node::source::{self, CommanderConfig};
 use teleop_node::{FinalReport, Node, NodeConfig, SourceLock, check_controller_links};
 
@@ -60,15 +59,7 @@ impl NodeConfig for ArmNodeConfig {
     }
 }
 
-/// A wrist pose message as an isometry; the quaternion is taken as sent (the jump
-/// filter refuses non-unit or non-finite ones, by name).
-pub fn isometry(p: &Pose) -> Isometry3<f64> {
-    let q = p.orientation;
-    Isometry3::from_parts(
-        Translation3::new(p.position.x, p.position.y, p.position.z),
-        UnitQuaternion::new_unchecked(Quaternion::new(q.w, q.x, q.y, q.z)),
-    )
-}
+pub use teleop_hardware::wire::isometry;
 
 /// The node: its subscriptions, the arm, the controller core.
 #[derive(Debug)]

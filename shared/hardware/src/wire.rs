@@ -107,6 +107,37 @@ fn stamp(time_s: f64) -> Header {
     Header::new(Time::from_nanos((time_s * 1e9) as i64), "")
 }
 
+/// A pose message as an isometry, the quaternion taken as sent (not normalized): the
+/// jump filters downstream refuse non-unit or non-finite ones by name, so a bad sample
+/// is counted where it is judged instead of silently repaired here.
+pub fn isometry(p: &teleop_msgs::Pose) -> nalgebra::Isometry3<f64> {
+    let q = p.orientation;
+    nalgebra::Isometry3::from_parts(
+        nalgebra::Translation3::new(p.position.x, p.position.y, p.position.z),
+        nalgebra::UnitQuaternion::new_unchecked(nalgebra::Quaternion::new(q.w, q.x, q.y, q.z)),
+    )
+}
+
+/// An isometry as a pose message; `None` if any component is not finite.
+pub fn pose_msg(pose: &nalgebra::Isometry3<f64>) -> Option<teleop_msgs::Pose> {
+    let t = pose.translation.vector;
+    let q = pose.rotation.quaternion();
+    let msg = teleop_msgs::Pose {
+        position: teleop_msgs::Point {
+            x: t.x,
+            y: t.y,
+            z: t.z,
+        },
+        orientation: teleop_msgs::Quaternion {
+            x: q.i,
+            y: q.j,
+            z: q.k,
+            w: q.w,
+        },
+    };
+    msg.is_finite().then_some(msg)
+}
+
 /// An arm state as a `JointState` (positions and velocities).
 pub fn arm_state_msg<const N: usize>(joints: &[&str; N], s: &ArmState<N>) -> JointState {
     JointState {
