@@ -11,6 +11,11 @@ use teleop_msgs::Lifecycle;
 use teleop_sim::operator::SimulatedOperatorConfig;
 use teleop_system_tests::{free_port, isolated_pair};
 
+/// One system of nodes at a time: each test runs a simulator, controllers and 320 Hz
+/// trackers; several at once starve a 2-core machine into stale-sample drops, which
+/// the counters below would then count instead of the foreign samples they look for.
+static ONE_SYSTEM: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
+
 /// Distance from `p` to the boundary of the axis-aligned square of side `side` centred
 /// at `c` in the plane z = c.z.
 fn distance_to_square(p: [f64; 3], c: [f64; 3], side: f64) -> f64 {
@@ -35,6 +40,7 @@ fn distance_to_square(p: [f64; 3], c: [f64; 3], side: f64) -> f64 {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn wrist_tracker_publishes_ground_truth_poses_inputs_and_status() {
+    let _one = ONE_SYSTEM.lock().await;
     let (node_bus, probe_bus) = isolated_pair(21, free_port().unwrap());
     let operator = SimulatedOperatorConfig {
         clutch_delay_s: 1.5,
@@ -186,6 +192,7 @@ async fn record(
 /// base-aligned frame (within millimetres, after the arm's lag).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn wrist_tracker_drives_the_simulated_pr2_arm_through_the_clutch() {
+    let _one = ONE_SYSTEM.lock().await;
     use teleop_hardware::wire;
     use teleop_remote_site::arm_node::{self, ArmNodeConfig};
     use teleop_remote_site::feedback_node::{self, FeedbackConfig};
@@ -296,6 +303,7 @@ async fn wrist_tracker_drives_the_simulated_pr2_arm_through_the_clutch() {
 /// the second's samples, and reports the conflict in its status.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_second_operator_site_is_refused_and_reported_never_blended() {
+    let _one = ONE_SYSTEM.lock().await;
     use teleop_remote_site::arm_node::{self, ArmNodeConfig};
     use teleop_remote_site::sim_node::{self, SimNodeConfig};
 
@@ -404,6 +412,7 @@ async fn a_second_operator_site_is_refused_and_reported_never_blended() {
 /// operator site.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn remote_camera_views_reach_the_operator_site() {
+    let _one = ONE_SYSTEM.lock().await;
     use teleop_remote_site::feedback_node::{self, FeedbackConfig};
     use teleop_remote_site::sim_node::{self, SimNodeConfig};
     use teleop_sim::CameraViewsConfig;
