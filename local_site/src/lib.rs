@@ -8,13 +8,16 @@
 //!   the UR5 base, jump-filtered, and the pedals, through the operator-site hardware
 //!   traits (`teleop_hardware::{WristTracker, OperatorPanel}`);
 //! * [`camera_arm_node`]: the active-vision camera arm on the UR5, around the pure
-//!   control core [`camera_arm`].
+//!   control core [`camera_arm`];
+//! * [`keyboard_panel`]: the operator panel (deadman, clutch, camera stop, motion
+//!   scale) on the keys of the wrist tracker's terminal.
 //!
 //! Real devices (PhaseSpace, an IMU suit, a pedal box, a UR5 driver, an SR300 driver)
 //! slot in behind the same traits and topics.
 
 pub mod camera_arm;
 pub mod camera_arm_node;
+pub mod keyboard_panel;
 pub mod local_sim;
 pub mod tracking;
 pub mod wrist_tracker;

@@ -245,17 +245,11 @@ impl LocalSimNode {
             k.height(),
             depth,
         );
-        publisher.put(&image)?;
-        self.last_render_us = u64::try_from(started.elapsed().as_micros()).unwrap_or(u64::MAX);
-        self.counters.depth_frames += 1;
-        if view.fully {
-            self.counters.frames_hand_fully_in_view += 1;
-        }
-        if view.keypoints == 0 {
-            self.counters.frames_hand_out_of_view += 1;
-        }
-        // The true fingers at the capture time of this frame.
         let joints = world.shadow_joints()?;
+        self.last_render_us = u64::try_from(started.elapsed().as_micros()).unwrap_or(u64::MAX);
+        // The true fingers at the capture time of this frame, put on the bus just
+        // before the frame: the report measures "frame on the bus -> targets" from
+        // this sample's send time (a little early, never late).
         self.truth_joints_pub.put(&JointState {
             header: Header::new(stamp(now_s), ""),
             name: SHADOW_FINGER_JOINTS
@@ -266,6 +260,14 @@ impl LocalSimNode {
             velocity: vec![],
             effort: vec![],
         })?;
+        publisher.put(&image)?;
+        self.counters.depth_frames += 1;
+        if view.fully {
+            self.counters.frames_hand_fully_in_view += 1;
+        }
+        if view.keypoints == 0 {
+            self.counters.frames_hand_out_of_view += 1;
+        }
         Ok(())
     }
 }

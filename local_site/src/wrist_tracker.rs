@@ -36,10 +36,11 @@
 //!    then the newest accepted sample per `1 / pose_rate_hz` period.
 //!
 //! The pedals come from `[panel]`: the pedal box over the bus (`bus`, default:
-//! [`BusPanel`] on [`topics::HW_PEDALS`]) or the in-process simulated operator
-//! (`simulated`). Stale pedals publish nothing (the robot site stops on stale input).
-//! The node is in [`Lifecycle::Fault`] while the tracker or the pedals are lost or
-//! stale.
+//! [`BusPanel`] on [`topics::HW_PEDALS`]), the in-process simulated operator
+//! (`simulated`) or the keys of the node's terminal (`keyboard`:
+//! [`KeyboardReader`] on stdin). Stale or lost pedals publish nothing (the robot site
+//! stops on stale input). The node is in [`Lifecycle::Fault`] while the tracker or the
+//! pedals are lost or stale.
 
 use std::time::Duration;
 
@@ -56,6 +57,7 @@ use teleop_node::{FinalReport, Node, NodeConfig, Periodic};
 use teleop_sim::operator::{SimulatedDevices, SimulatedOperator, SimulatedOperatorConfig};
 use teleop_sim::operator_site;
 
+use crate::keyboard_panel::{KeyboardPanelConfig, KeyboardReader};
 use crate::tracking::bvh::{BvhStreamConfig, BvhStreamTracker};
 use crate::tracking::replay::{ReplayConfig, ReplayTracker};
 
@@ -187,6 +189,7 @@ impl NodeConfig for WristTrackerConfig {
         match &self.panel {
             PanelSource::Bus(p) => check_range("panel.stale_after_s", p.stale_after_s, 0.0, 10.0)?,
             PanelSource::Simulated => {}
+            PanelSource::Keyboard(k) => k.validate().map_err(|e| format!("panel.{e}"))?,
         }
         self.registration.validate()?;
         self.jump.validate().map_err(|e| format!("jump: {e}"))?;
@@ -301,6 +304,9 @@ pub enum PanelSource {
     /// The in-process simulated operator (`[operator]`): for the in-process pose
     /// sources' standalone use.
     Simulated,
+    /// The keys of the node's terminal (stdin): a person at the keyboard
+    /// ([`crate::keyboard_panel`]). For running the wrist tracker by hand.
+    Keyboard(KeyboardPanelConfig),
 }
 
 impl Default for PanelSource {
@@ -313,7 +319,8 @@ impl PanelSource {
     /// Opens the panel.
     ///
     /// # Errors
-    /// A bus declaration.
+    /// A bus declaration; for `keyboard`, an invalid config or a terminal whose mode
+    /// cannot be set.
     pub async fn open(
         &self,
         operator: &SimulatedOperatorConfig,
@@ -324,6 +331,7 @@ impl PanelSource {
             Self::Simulated => Box::new(SimulatedDevices::new(SimulatedOperator::new(
                 operator.clone(),
             ))),
+            Self::Keyboard(k) => Box::new(KeyboardReader::stdin(k, bus.clock().clone())?),
         })
     }
 }
@@ -1326,6 +1334,65 @@ mod tests {
         let text = teleop_node::config::to_toml(&WristTrackerConfig::default()).expect("toml");
         let back: WristTrackerConfig = toml::from_str(&text).expect("parses back");
         assert_eq!(back, WristTrackerConfig::default());
+    }
+
+    #[test]
+    fn the_keyboard_panel_parses_and_its_fields_are_checked() {
+        let cfg: WristTrackerConfig =
+            toml::from_str("[panel]\nkind = \"keyboard\"\n").expect("keyboard panel");
+        assert_eq!(
+            cfg.panel,
+            PanelSource::Keyboard(KeyboardPanelConfig::default())
+        );
+        cfg.validate().expect("default keyboard panel valid");
+        let cfg: WristTrackerConfig = toml::from_str(
+            "[panel]\nkind = \"keyboard\"\nhold_timeout_s = 0.9\nmotion_scale = 0.5\n",
+        )
+        .expect("keyboard panel");
+        assert_eq!(
+            cfg.panel,
+            PanelSource::Keyboard(KeyboardPanelConfig {
+                hold_timeout_s: 0.9,
+                motion_scale: 0.5,
+            })
+        );
+        cfg.validate().expect("valid");
+        let typo = toml::from_str::<WristTrackerConfig>(
+            "[panel]\nkind = \"keyboard\"\nhold_timeout = 0.9\n",
+        )
+        .expect_err("unknown field");
+        assert!(typo.to_string().contains("hold_timeout"), "{typo}");
+        // A field of the bus panel is not one of the keyboard's.
+        let other = toml::from_str::<WristTrackerConfig>(
+            "[panel]\nkind = \"keyboard\"\nstale_after_s = 0.1\n",
+        )
+        .expect_err("unknown field");
+        assert!(other.to_string().contains("stale_after_s"), "{other}");
+        for (text, name) in [
+            ("hold_timeout_s = 5.0", "panel.hold_timeout_s"),
+            ("hold_timeout_s = 0.0", "panel.hold_timeout_s"),
+            ("motion_scale = 1.5", "panel.motion_scale"),
+            ("motion_scale = -0.5", "panel.motion_scale"),
+        ] {
+            let cfg: WristTrackerConfig =
+                toml::from_str(&format!("[panel]\nkind = \"keyboard\"\n{text}\n")).expect("parses");
+            let e = cfg.validate().expect_err(text);
+            assert!(e.starts_with(name), "{text}: {e}");
+        }
+        // Round trip through the TOML form.
+        let text = teleop_node::config::to_toml(&cfg_with_keyboard()).expect("toml");
+        let back: WristTrackerConfig = toml::from_str(&text).expect("parses back");
+        assert_eq!(back, cfg_with_keyboard());
+    }
+
+    fn cfg_with_keyboard() -> WristTrackerConfig {
+        WristTrackerConfig {
+            panel: PanelSource::Keyboard(KeyboardPanelConfig {
+                hold_timeout_s: 0.8,
+                motion_scale: 0.25,
+            }),
+            ..Default::default()
+        }
     }
 
     #[tokio::test(flavor = "multi_thread", worker_threads = 1)]

@@ -292,6 +292,13 @@ async fn the_camera_arm_node_follows_the_hand_obeys_the_pedals_and_stops() {
     }
     assert!(active, "the node reported Active while following");
     assert!(err < 0.03, "camera {err} m from its goal");
+    // It stays there (and the camera poses below have a second of them to check).
+    for _ in 0..30 {
+        rig.period(Send::follow(hand)).await;
+        let goal = rig.node.controller().goal_for(&hand);
+        err = (rig.camera().translation.vector - goal.translation.vector).norm();
+        assert!(err < 0.03, "camera {err} m from its goal while holding");
+    }
     let step = *rig.node.last_step().unwrap();
     let goal = rig.node.controller().goal_for(&hand);
     assert_eq!(step.stopped, None);

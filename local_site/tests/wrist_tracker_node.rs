@@ -13,7 +13,7 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use teleop_bus::{Bus, BusConfig};
 use teleop_interfaces::topics;
 use teleop_local_site::wrist_tracker::{BASE_FRAME, WristTrackerConfig, WristTrackerNode};
-use teleop_msgs::{Header, Lifecycle, OperatorInput, Point, Pose, PoseStamped, Quaternion, Time};
+use teleop_msgs::{Header, Lifecycle, OperatorInput, Pose, PoseStamped, Time};
 use teleop_node::Node;
 use teleop_sim::operator_site;
 
@@ -39,23 +39,9 @@ fn marker_for(hand: &Isometry3<f64>) -> Isometry3<f64> {
 }
 
 fn pose_stamped(pose: &Isometry3<f64>, stamp: Time, frame: &str) -> PoseStamped {
-    let t = pose.translation.vector;
-    let q = pose.rotation.quaternion();
     PoseStamped {
         header: Header::new(stamp, frame),
-        pose: Pose {
-            position: Point {
-                x: t.x,
-                y: t.y,
-                z: t.z,
-            },
-            orientation: Quaternion {
-                x: q.i,
-                y: q.j,
-                z: q.k,
-                w: q.w,
-            },
-        },
+        pose: teleop_hardware::wire::pose_msg(pose).expect("a finite test pose"),
     }
 }
 

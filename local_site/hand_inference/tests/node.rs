@@ -16,9 +16,7 @@ use teleop_hand_model::scene::HAND_CENTRE_IN_HAND_FRAME;
 use teleop_hardware::safety::HandLimits;
 use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 use teleop_interfaces::topics;
-use teleop_msgs::{
-    Header, Image, JointState, Lifecycle, Point, Pose, PoseStamped, Quaternion, Time,
-};
+use teleop_msgs::{Header, Image, JointState, Lifecycle, PoseStamped, Time};
 use teleop_node::{Node, NodeConfig};
 use teleop_render::Intrinsics;
 
@@ -83,23 +81,9 @@ fn blob_frame(centre: &Point3<f64>) -> Vec<u16> {
 }
 
 fn pose_msg(pose: &Isometry3<f64>, stamp: Time) -> PoseStamped {
-    let t = pose.translation.vector;
-    let q = pose.rotation.quaternion();
     PoseStamped {
         header: Header::new(stamp, "ur5_base"),
-        pose: Pose {
-            position: Point {
-                x: t.x,
-                y: t.y,
-                z: t.z,
-            },
-            orientation: Quaternion {
-                x: q.i,
-                y: q.j,
-                z: q.k,
-                w: q.w,
-            },
-        },
+        pose: teleop_hardware::wire::pose_msg(pose).expect("a finite test pose"),
     }
 }
 

@@ -33,3 +33,5 @@ pub use session::{
     Subscriber, priority,
 };
 pub use stats::StatsSnapshot;
+/// Wakes a node when a sample arrives ([`Subscriber::wake_on_sample`]).
+pub use tokio::sync::Notify;

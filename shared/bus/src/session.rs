@@ -555,6 +555,8 @@ struct Shared<T> {
     queue: Mutex<VecDeque<Received<T>>>,
     ready: Condvar,
     notify: tokio::sync::Notify,
+    /// Woken (`notify_one`) on every queued sample: see [`Subscriber::wake_on_sample`].
+    wake: Mutex<Option<Arc<tokio::sync::Notify>>>,
     stats: TopicStats,
     guard: Mutex<ReceiveGuard>,
     log_limiter: Mutex<LogLimiter>,
@@ -599,6 +601,7 @@ impl<T: Message> Shared<T> {
             queue: Mutex::new(VecDeque::with_capacity(spec.qos.depth())),
             ready: Condvar::new(),
             notify: tokio::sync::Notify::new(),
+            wake: Mutex::new(None),
             stats: TopicStats::new(),
             guard: Mutex::new(ReceiveGuard::new(settings)),
             log_limiter: Mutex::new(LogLimiter::default()),
@@ -700,6 +703,11 @@ impl<T: Message> Shared<T> {
         self.ready.notify_all();
         self.notify.notify_waiters();
         self.notify.notify_one();
+        if let Ok(wake) = self.wake.lock()
+            && let Some(w) = wake.as_ref()
+        {
+            w.notify_one();
+        }
     }
 
     fn pop(&self) -> Option<Received<T>> {
@@ -812,6 +820,16 @@ impl<T: Message> Subscriber<T> {
 
     pub fn stats(&self) -> StatsSnapshot {
         self.shared.stats.snapshot()
+    }
+
+    /// Wakes `wake` (`notify_one`: a wake-up with no one waiting is kept for the next
+    /// wait) whenever a sample is queued, so that a node runner can act on a sample as
+    /// it arrives instead of at its next period ([`None`]: no more wake-ups). Only
+    /// accepted samples wake: foreign, stale or malformed ones do not.
+    pub fn wake_on_sample(&self, wake: Option<Arc<tokio::sync::Notify>>) {
+        if let Ok(mut w) = self.shared.wake.lock() {
+            *w = wake;
+        }
     }
 
     /// Takes samples only from publisher `gid` from now on (`None`: from every

@@ -201,6 +201,8 @@ pub struct BusCamera {
     /// Images this handle itself skipped (besides those the subscriber overwrote).
     skipped: u64,
     bad_images: u64,
+    /// When the last image read was put on the bus (its publisher's clock, ns).
+    last_sent_ns: Option<i64>,
 }
 
 impl BusCamera {
@@ -218,7 +220,21 @@ impl BusCamera {
             images: bus.subscriber(topic).await?,
             skipped: 0,
             bad_images: 0,
+            last_sent_ns: None,
         })
+    }
+
+    /// Wakes `wake` whenever an image arrives (see
+    /// [`teleop_bus::Subscriber::wake_on_sample`]): a node processes each frame as it
+    /// comes instead of at its next period.
+    pub fn wake_on_frame(&self, wake: Option<std::sync::Arc<teleop_bus::Notify>>) {
+        self.images.wake_on_sample(wake);
+    }
+
+    /// When the image last returned by `read` was put on the bus (ns since the Unix
+    /// epoch, the publisher's clock): the camera driver's send time.
+    pub fn last_sent_ns(&self) -> Option<i64> {
+        self.last_sent_ns
     }
 
     /// Images refused because their layout did not match their size and encoding, or
@@ -239,6 +255,7 @@ impl Camera for BusCamera {
             if newest.is_some() {
                 self.skipped += 1;
             }
+            self.last_sent_ns = Some(r.source_timestamp_ns);
             newest = Some(r.msg);
         }
         let Some(image) = newest else {

@@ -10,30 +10,16 @@ use teleop_bus::{Bus, BusConfig};
 use teleop_hardware::{HardwareError, OperatorPanel, WristTracker};
 use teleop_hardware_bus::{BusPanel, BusWristTracker};
 use teleop_interfaces::topics;
-use teleop_msgs::{Header, OperatorInput, Point, Pose, PoseStamped, Quaternion, Time};
+use teleop_msgs::{Header, OperatorInput, PoseStamped, Time};
 
 fn configs(domain_id: u32) -> (BusConfig, BusConfig) {
     teleop_bus::testing::loopback_pair(domain_id)
 }
 
 fn marker_msg(pose: &Isometry3<f64>, stamp: Time) -> PoseStamped {
-    let t = pose.translation.vector;
-    let q = pose.rotation.quaternion();
     PoseStamped {
         header: Header::new(stamp, "mocap"),
-        pose: Pose {
-            position: Point {
-                x: t.x,
-                y: t.y,
-                z: t.z,
-            },
-            orientation: Quaternion {
-                x: q.i,
-                y: q.j,
-                z: q.k,
-                w: q.w,
-            },
-        },
+        pose: teleop_hardware::wire::pose_msg(pose).expect("a finite test pose"),
     }
 }
 

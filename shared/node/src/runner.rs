@@ -36,6 +36,12 @@ pub trait Node: Send {
     /// Called once when the node stops, before the final status: command the hardware
     /// to stop (or hold). Default: nothing to stop.
     fn shutdown(&mut self, _now_s: f64) {}
+    /// A signal that the node has work before its next period (a camera frame arrived;
+    /// see `teleop_bus::Subscriber::wake_on_sample`): the runner then ticks at once,
+    /// besides the periodic ticks. Default: none, the node ticks on its period only.
+    fn wake(&self) -> Option<std::sync::Arc<tokio::sync::Notify>> {
+        None
+    }
 }
 
 /// What a node reported when it stopped.
@@ -92,22 +98,31 @@ where
     };
     let mut reported = node.state();
     tracing::info!(node = %node_name, zid = bus.zid(), state = ?reported, "running");
+    let wake = node.wake();
+    let woken = || async {
+        match &wake {
+            Some(w) => w.notified().await,
+            None => std::future::pending().await,
+        }
+    };
     loop {
+        // A tick on the period or on a wake-up (a frame arrived), alike.
         tokio::select! {
             () = &mut stop => break,
             _ = status_tick.tick() => {
                 reported = node.state();
                 report(&node, reported);
+                continue;
             }
-            _ = tick.tick() => {
-                node.tick(bus.now_s());
-                let state = node.state();
-                if state != reported {
-                    tracing::info!(node = %node_name, from = ?reported, to = ?state, "lifecycle");
-                    reported = state;
-                    report(&node, state);
-                }
-            }
+            () = woken() => {}
+            _ = tick.tick() => {}
+        }
+        node.tick(bus.now_s());
+        let state = node.state();
+        if state != reported {
+            tracing::info!(node = %node_name, from = ?reported, to = ?state, "lifecycle");
+            reported = state;
+            report(&node, state);
         }
     }
     let state_at_stop = node.state();

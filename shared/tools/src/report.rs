@@ -89,6 +89,15 @@ pub struct RunReport {
     pub pr2_position_error_m: ErrorSummary,
     /// Mean absolute error per axis (x, y, z) while clutched, m (the thesis's L1).
     pub pr2_mean_abs_error_xyz_m: [f64; 3],
+    /// The delay that best explains the PR2 error: the palm compared with the scaled
+    /// operator motion this much earlier fits best (ms, searched 0-300 ms in 5 ms steps).
+    pub pr2_best_fit_delay_ms: f64,
+    /// The PR2 mean position error at that delay, m: what is left when the lag is taken
+    /// out (the shape of the path, not its timing).
+    pub pr2_error_at_best_delay_m: f64,
+    /// The same for the camera against its goal.
+    pub camera_best_fit_delay_ms: f64,
+    pub camera_error_at_best_delay_m: f64,
     pub clutch_engagements: u64,
     /// The PR2 arm controller's stops by reason (its `arm.stop.*` counters): a stale
     /// input or a lost site stops the arm, and the error above then grows.
@@ -183,11 +192,82 @@ impl Stage {
 }
 
 /// Clutch state of the relative control.
+/// Delays tried by [`DelayFit`]: 0 to 300 ms in 5 ms steps.
+const DELAY_STEPS: usize = 61;
+const DELAY_STEP_S: f64 = 0.005;
+
+/// Mean error of a series against its reference delayed by each of [`DELAY_STEPS`]
+/// delays, to tell a lag from an error of shape.
+#[derive(Debug, Clone)]
+struct DelayFit {
+    sums: [f64; DELAY_STEPS],
+    counts: [usize; DELAY_STEPS],
+}
+
+impl Default for DelayFit {
+    fn default() -> Self {
+        Self {
+            sums: [0.0; DELAY_STEPS],
+            counts: [0; DELAY_STEPS],
+        }
+    }
+}
+
+impl DelayFit {
+    /// Adds the error of one sample at every delay (`error(delay_s)`, `None` where the
+    /// reference is not known).
+    fn add(&mut self, mut error: impl FnMut(f64) -> Option<f64>) {
+        for (i, (sum, n)) in self.sums.iter_mut().zip(&mut self.counts).enumerate() {
+            if let Some(e) = error(i as f64 * DELAY_STEP_S) {
+                *sum += e;
+                *n += 1;
+            }
+        }
+    }
+
+    /// The delay with the smallest mean error (only delays seen for at least 90 % as
+    /// many samples as the zero delay), and that mean: `(delay ms, mean)`.
+    fn best(&self) -> Option<(f64, f64)> {
+        let n0 = self.counts[0];
+        if n0 == 0 {
+            return None;
+        }
+        (0..DELAY_STEPS)
+            .filter(|&i| self.counts[i] * 10 >= n0 * 9)
+            .map(|i| {
+                (
+                    i as f64 * DELAY_STEP_S * 1e3,
+                    self.sums[i] / self.counts[i] as f64,
+                )
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+    }
+}
+
 #[derive(Debug, Clone, Copy)]
 struct Engaged {
     human_ref: Vector3<f64>,
     robot_ref: Option<Vector3<f64>>,
     scale: f64,
+}
+
+/// The pose at `t_s` in a time-ordered series (linear/spherical interpolation); a
+/// time outside it only within 20 ms of its end.
+fn truth_at(truth: &[(f64, Isometry3<f64>)], t_s: f64) -> Option<Isometry3<f64>> {
+    let i = truth.partition_point(|(t, _)| *t < t_s);
+    if i == 0 || i >= truth.len() {
+        return truth
+            .last()
+            .filter(|(t, _)| (t - t_s).abs() < 0.02)
+            .map(|(_, p)| *p);
+    }
+    let (t0, a) = truth[i - 1];
+    let (t1, b) = truth[i];
+    let s = ((t_s - t0) / (t1 - t0)).clamp(0.0, 1.0);
+    Some(Isometry3::from_parts(
+        Translation3::from(a.translation.vector.lerp(&b.translation.vector, s)),
+        a.rotation.slerp(&b.rotation, s),
+    ))
 }
 
 /// Collects the run from the bus.
@@ -206,15 +286,20 @@ pub struct Recorder {
     camera_cfg: CameraArmConfig,
     /// True hand poses by time (node clock), the last 5 s.
     truth: Vec<(f64, Isometry3<f64>)>,
-    /// True Shadow joints by capture stamp (ns), the last few hundred frames.
-    truth_joints_by_stamp: BTreeMap<i64, Vec<f64>>,
-    pending_targets: Vec<(i64, f64, Vec<f64>)>,
+    /// True Shadow joints by capture stamp (ns), with the time they were put on the
+    /// bus (just before their depth frame, s), the last few hundred frames.
+    truth_joints_by_stamp: BTreeMap<i64, (Vec<f64>, f64)>,
+    /// Finger targets waiting for their frame's truth: (stamp ns, stamp s, received s,
+    /// joints).
+    pending_targets: Vec<(i64, f64, f64, Vec<f64>)>,
     engaged: Option<Engaged>,
     stages: Vec<Stage>,
     report: RunReport,
     pr2_abs: [f64; 3],
     pr2_n: usize,
     pr2_errors: Vec<f64>,
+    pr2_delay: DelayFit,
+    camera_delay: DelayFit,
     camera_pos: Vec<f64>,
     camera_dir: Vec<f64>,
     hand_errors: Vec<f64>,
@@ -228,6 +313,7 @@ const STAGE_CAMERA: usize = 1;
 const STAGE_TARGETS: usize = 2;
 const STAGE_PR2: usize = 3;
 const STAGE_TIPS: usize = 4;
+const STAGE_FRAME_SENT_TARGETS: usize = 5;
 
 impl Recorder {
     /// Subscribes to everything the report needs.
@@ -257,6 +343,7 @@ impl Recorder {
                 Stage::new("depth frame -> finger targets"),
                 Stage::new("PR2 joints -> feedback"),
                 Stage::new("fingertip sensors -> feedback"),
+                Stage::new("depth frame on the bus -> finger targets"),
             ],
             report: RunReport {
                 task: task.to_owned(),
@@ -265,6 +352,8 @@ impl Recorder {
             pr2_abs: [0.0; 3],
             pr2_n: 0,
             pr2_errors: Vec::new(),
+            pr2_delay: DelayFit::default(),
+            camera_delay: DelayFit::default(),
             camera_pos: Vec::new(),
             camera_dir: Vec::new(),
             hand_errors: Vec::new(),
@@ -276,22 +365,7 @@ impl Recorder {
 
     /// The true hand pose at `t_s` (linear/spherical interpolation), if recorded.
     fn truth_at(&self, t_s: f64) -> Option<Isometry3<f64>> {
-        let i = self.truth.partition_point(|(t, _)| *t < t_s);
-        if i == 0 || i >= self.truth.len() {
-            // Only a sample within 20 ms of the end is used as it is.
-            return self
-                .truth
-                .last()
-                .filter(|(t, _)| (t - t_s).abs() < 0.02)
-                .map(|(_, p)| *p);
-        }
-        let (t0, a) = self.truth[i - 1];
-        let (t1, b) = self.truth[i];
-        let s = ((t_s - t0) / (t1 - t0)).clamp(0.0, 1.0);
-        Some(Isometry3::from_parts(
-            Translation3::from(a.translation.vector.lerp(&b.translation.vector, s)),
-            a.rotation.slerp(&b.rotation, s),
-        ))
+        truth_at(&self.truth, t_s)
     }
 
     /// Takes everything that arrived since the last call.
@@ -306,8 +380,9 @@ impl Recorder {
             self.truth.drain(..keep);
         }
         while let Some(r) = self.truth_joints.try_recv() {
+            let sent_s = r.source_timestamp_ns as f64 * 1e-9;
             self.truth_joints_by_stamp
-                .insert(r.msg.header.stamp.as_nanos(), r.msg.position.clone());
+                .insert(r.msg.header.stamp.as_nanos(), (r.msg.position, sent_s));
         }
         while self.truth_joints_by_stamp.len() > 600 {
             self.truth_joints_by_stamp.pop_first();
@@ -332,6 +407,18 @@ impl Recorder {
                     .to_degrees();
                 self.camera_pos.push(e);
                 self.camera_dir.push(dir);
+                let (truth, c) = (&self.truth, &self.camera_cfg);
+                self.camera_delay.add(|d| {
+                    truth_at(truth, t - d).map(|hand| {
+                        let goal = camera_goal(
+                            &hand,
+                            c.standoff_m,
+                            c.side,
+                            &Vector3::from(c.look_at_in_hand_m),
+                        );
+                        (cam.translation.vector - goal.translation.vector).norm()
+                    })
+                });
                 self.report.camera_series.push((t - self.start_s, e));
             }
         }
@@ -374,21 +461,34 @@ impl Recorder {
                 }
                 self.pr2_n += 1;
                 self.pr2_errors.push(err.norm());
+                let (truth, eng) = (&self.truth, *eng);
+                self.pr2_delay.add(|d| {
+                    truth_at(truth, t - d).map(|h| {
+                        let expected =
+                            robot_ref + (h.translation.vector - eng.human_ref) * eng.scale;
+                        (palm - expected).norm()
+                    })
+                });
                 self.report.pr2_series.push((t - self.start_s, err.norm()));
             }
         }
         while let Some(r) = self.targets.try_recv() {
             let stamp = r.msg.header.stamp.as_nanos();
             self.stages[STAGE_TARGETS].add(r.receive_time_s(), secs(&r.msg.header.stamp));
-            self.pending_targets
-                .push((stamp, secs(&r.msg.header.stamp), r.msg.position));
+            self.pending_targets.push((
+                stamp,
+                secs(&r.msg.header.stamp),
+                r.receive_time_s(),
+                r.msg.position,
+            ));
         }
         // Pair targets with the truth of their frame (the truth may arrive later).
         let truth = &self.truth_joints_by_stamp;
         let mut unmatched = Vec::new();
-        for (stamp, t, q) in self.pending_targets.drain(..) {
+        for (stamp, t, received_s, q) in self.pending_targets.drain(..) {
             match truth.get(&stamp) {
-                Some(truth_q) if truth_q.len() == q.len() && !q.is_empty() => {
+                Some((truth_q, sent_s)) if truth_q.len() == q.len() && !q.is_empty() => {
+                    self.stages[STAGE_FRAME_SENT_TARGETS].add(received_s, *sent_s);
                     let errs: Vec<f64> =
                         q.iter().zip(truth_q).map(|(a, b)| (a - b).abs()).collect();
                     let mean = errs.iter().sum::<f64>() / errs.len() as f64;
@@ -399,10 +499,10 @@ impl Recorder {
                     self.report.hand_series.push((t - self.start_s, mean));
                 }
                 _ if truth.first_key_value().is_some_and(|(k, _)| *k > stamp) => {}
-                _ => unmatched.push((stamp, t, q)),
+                _ => unmatched.push((stamp, t, received_s, q)),
             }
         }
-        unmatched.retain(|(stamp, _, _)| {
+        unmatched.retain(|(stamp, _, _, _)| {
             truth
                 .last_key_value()
                 .is_none_or(|(k, _)| *k < stamp + 1_000_000_000)
@@ -445,6 +545,12 @@ impl Recorder {
         r.camera_position_error_m = ErrorSummary::of(&self.camera_pos);
         r.camera_direction_error_deg = ErrorSummary::of(&self.camera_dir);
         r.pr2_position_error_m = ErrorSummary::of(&self.pr2_errors);
+        if let Some((d, e)) = self.pr2_delay.best() {
+            (r.pr2_best_fit_delay_ms, r.pr2_error_at_best_delay_m) = (d, e);
+        }
+        if let Some((d, e)) = self.camera_delay.best() {
+            (r.camera_best_fit_delay_ms, r.camera_error_at_best_delay_m) = (d, e);
+        }
         if self.pr2_n > 0 {
             r.pr2_mean_abs_error_xyz_m = self.pr2_abs.map(|a| a / self.pr2_n as f64);
         }
@@ -558,6 +664,14 @@ impl RunReport {
             y * 100.0,
             z * 100.0,
             p.samples
+        );
+        let _ = writeln!(
+            s,
+            "  delay: the palm matches the operator's motion best {:.0} ms earlier (mean error there {:.1} cm); the camera its goal {:.0} ms earlier ({:.1} cm)",
+            self.pr2_best_fit_delay_ms,
+            self.pr2_error_at_best_delay_m * 100.0,
+            self.camera_best_fit_delay_ms,
+            self.camera_error_at_best_delay_m * 100.0
         );
         if !self.pr2_stops.is_empty() {
             let stops: Vec<String> = self

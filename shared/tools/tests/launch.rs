@@ -96,82 +96,118 @@ fn launch_runs_the_system_and_stops_it_gracefully_with_a_summary() {
     );
 }
 
+/// The shipped model's mean joint error on its offline test set (docs/hand-inference.md,
+/// baseline-60min, test: 0.0948 rad); the closed loop may be at most 1.2x that.
+const OFFLINE_TEST_MEAN_ERROR_RAD: f64 = 0.0948;
+
 /// `--task` runs one task of the simulated operator and ends by itself when it is done,
 /// with the end-of-run report printed and written as JSON and PNG. The report's
-/// figures come from the closed loop against the simulator's ground truth: the camera
-/// kept the hand in view, the PR2 followed the scaled operator motion, hand inference
-/// produced a target for nearly every depth frame.
+/// figures come from the closed loop against the simulator's ground truth and are held
+/// to the local-site issue's goals: the camera within 1 cm on average and 3 cm at worst
+/// of its goal with the hand fully in view in >= 99.5 % of frames, the PR2 within 5 mm
+/// on average of the scaled operator motion, the hand joints within 1.2x the model's
+/// offline error. (The latency goal is measured, not asserted: tests assert behaviour,
+/// never timing; docs/local-site.md has the figures.)
 #[test]
-fn a_task_runs_once_and_ends_with_the_report() {
+fn tasks_run_once_and_meet_the_goals_in_the_report() {
     let _one = one_system();
     let teleop = Path::new(env!("CARGO_BIN_EXE_teleop"));
-    let dir = std::env::temp_dir().join(format!("teleop-report-test-{}", std::process::id()));
-    let out = Command::new(teleop)
-        .args([
-            "--domain-id",
-            "93",
-            "launch",
-            "--quiet",
-            "--task",
-            "fader",
-            "--report-dir",
-        ])
-        .arg(&dir)
-        // A bound in case the task never reports done.
-        .args(["--duration-s", "60"])
-        .output()
-        .expect("run teleop launch");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    println!("{stdout}");
-    assert!(
-        out.status.success(),
-        "launch failed ({}):\n{stdout}\n{stderr}",
-        out.status
-    );
-    assert_every_node_stopped_gracefully(&stdout);
-    let json: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(dir.join("report.json")).expect("report.json written"),
-    )
-    .expect("report.json parses");
-    let png = std::fs::read(dir.join("report.png")).expect("report.png written");
-    assert!(png.starts_with(b"\x89PNG"), "not a PNG");
-    let f = |key: &str| {
-        json[key]
-            .as_f64()
-            .unwrap_or_else(|| panic!("{key} in {json}"))
-    };
-    let nested = |key: &str, field: &str| {
-        json[key][field]
-            .as_f64()
-            .unwrap_or_else(|| panic!("{key}.{field} in {json}"))
-    };
-    assert_eq!(json["task"], "fader");
-    // The fader task (about 16 s) ran to its end, and not to the 60 s bound.
-    let duration = f("duration_s");
-    assert!((15.0..40.0).contains(&duration), "ran {duration} s");
-    // The camera kept the hand in view and near its goal.
-    let frames = f("depth_frames");
-    assert!(frames > 300.0, "{frames} depth frames");
-    assert!(f("fraction_hand_fully_in_view") > 0.9, "{json}");
-    assert!(nested("camera_position_error_m", "mean") < 0.03, "{json}");
-    assert!(
-        nested("camera_position_error_m", "samples") > 300.0,
-        "{json}"
-    );
-    // Hand inference: targets for (nearly) every frame, paired with the truth.
-    assert!(f("finger_target_frames") > 0.8 * frames, "{json}");
-    assert!(nested("hand_joint_mean_error_rad", "mean") < 0.15, "{json}");
-    // The PR2 followed the operator while clutched.
-    assert_eq!(json["clutch_engagements"], 1, "{json}");
-    assert!(nested("pr2_position_error_m", "samples") > 500.0, "{json}");
-    assert!(nested("pr2_position_error_m", "mean") < 0.03, "{json}");
-    // Every latency stage was measured.
-    for stage in json["latency"].as_array().expect("latency") {
-        assert!(stage["samples"].as_u64().unwrap_or(0) > 100, "{stage}");
-        assert!(stage["p50_ms"].as_f64().is_some_and(|v| v > 0.0), "{stage}");
+    // Sharp corners at constant speed; and reaching, carrying, putting down.
+    for (task, domain, duration) in [
+        ("fader", "93", 15.0..40.0),
+        ("pick_and_place", "94", 13.0..40.0),
+    ] {
+        let dir =
+            std::env::temp_dir().join(format!("teleop-report-test-{}-{task}", std::process::id()));
+        let out = Command::new(teleop)
+            .args([
+                "--domain-id",
+                domain,
+                "launch",
+                "--quiet",
+                "--task",
+                task,
+                "--report-dir",
+            ])
+            .arg(&dir)
+            // A bound in case the task never reports done.
+            .args(["--duration-s", "60"])
+            .output()
+            .expect("run teleop launch");
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        println!("{stdout}");
+        assert!(
+            out.status.success(),
+            "launch failed ({}):\n{stdout}\n{stderr}",
+            out.status
+        );
+        assert_every_node_stopped_gracefully(&stdout);
+        let json: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.join("report.json")).expect("report.json written"),
+        )
+        .expect("report.json parses");
+        let png = std::fs::read(dir.join("report.png")).expect("report.png written");
+        assert!(png.starts_with(b"\x89PNG"), "not a PNG");
+        let f = |key: &str| {
+            json[key]
+                .as_f64()
+                .unwrap_or_else(|| panic!("{key} in {json}"))
+        };
+        let nested = |key: &str, field: &str| {
+            json[key][field]
+                .as_f64()
+                .unwrap_or_else(|| panic!("{key}.{field} in {json}"))
+        };
+        assert_eq!(json["task"], task);
+        // The task ran to its end, and not to the 60 s bound.
+        let ran = f("duration_s");
+        assert!(duration.contains(&ran), "{task} ran {ran} s");
+        // The camera kept the hand in view and near its goal.
+        let frames = f("depth_frames");
+        assert!(frames > 300.0, "{task}: {frames} depth frames");
+        assert!(f("fraction_hand_fully_in_view") >= 0.995, "{task}: {json}");
+        assert!(
+            nested("camera_position_error_m", "samples") > 300.0,
+            "{task}: {json}"
+        );
+        assert!(
+            nested("camera_position_error_m", "mean") <= 0.01,
+            "{task}: {json}"
+        );
+        assert!(
+            nested("camera_position_error_m", "max") <= 0.03,
+            "{task}: {json}"
+        );
+        // Hand inference: targets for (nearly) every frame, paired with the truth.
+        assert!(f("finger_target_frames") > 0.8 * frames, "{task}: {json}");
+        assert!(
+            nested("hand_joint_mean_error_rad", "mean") <= 1.2 * OFFLINE_TEST_MEAN_ERROR_RAD,
+            "{task}: {json}"
+        );
+        // The PR2 followed the operator while clutched.
+        assert_eq!(json["clutch_engagements"], 1, "{task}: {json}");
+        assert!(
+            nested("pr2_position_error_m", "samples") > 500.0,
+            "{task}: {json}"
+        );
+        assert!(
+            nested("pr2_position_error_m", "mean") <= 0.005,
+            "{task}: {json}"
+        );
+        // Every latency stage was measured.
+        for stage in json["latency"].as_array().expect("latency") {
+            assert!(
+                stage["samples"].as_u64().unwrap_or(0) > 100,
+                "{task}: {stage}"
+            );
+            assert!(
+                stage["p50_ms"].as_f64().is_some_and(|v| v > 0.0),
+                "{task}: {stage}"
+            );
+        }
+        let _ = std::fs::remove_dir_all(&dir);
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// A terminal's Ctrl-C sends SIGINT to the whole foreground process group: the launcher

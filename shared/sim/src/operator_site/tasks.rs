@@ -158,16 +158,21 @@ impl TaskScript {
                 ],
                 Profile::MinJerk,
             ),
+            // The turn takes 6.5 s each way: the camera, 40 cm from the hand along the
+            // palm normal, orbits a quarter circle (0.63 m) as the hand turns, and its
+            // 0.2 m/s limit needs at least 1.875 x 0.63 / 0.2 = 5.9 s for that on a
+            // minimum-jerk profile (a faster pour leaves the camera behind and the
+            // hand out of view).
             TaskKind::Pouring => (
                 vec![
                     key(0.0, o, o, Grasp::OPEN),
                     key(1.0, o, o, Grasp::power(0.8)),
                     key(2.5, [0.0, 0.0, 0.08], o, Grasp::power(0.8)),
-                    key(5.0, [0.0, 0.0, 0.08], [0.0, 0.0, 90.0], Grasp::power(0.8)),
-                    key(7.0, [0.0, 0.0, 0.08], [0.0, 0.0, 90.0], Grasp::power(0.8)),
-                    key(9.5, [0.0, 0.0, 0.08], o, Grasp::power(0.8)),
-                    key(11.0, o, o, Grasp::power(0.8)),
-                    key(12.0, o, o, Grasp::OPEN),
+                    key(9.0, [0.0, 0.0, 0.08], [0.0, 0.0, 90.0], Grasp::power(0.8)),
+                    key(10.0, [0.0, 0.0, 0.08], [0.0, 0.0, 90.0], Grasp::power(0.8)),
+                    key(16.5, [0.0, 0.0, 0.08], o, Grasp::power(0.8)),
+                    key(18.0, o, o, Grasp::power(0.8)),
+                    key(19.0, o, o, Grasp::OPEN),
                 ],
                 Profile::MinJerk,
             ),
@@ -176,12 +181,14 @@ impl TaskScript {
                     synergy: Synergy::Power,
                     closure: 0.15,
                 };
+                // 30 cm strokes in 3.2 s: 0.18 m/s at the fastest (minimum jerk), under
+                // the arms' 0.2 m/s Cartesian limit.
                 let mut frames = vec![key(0.0, o, o, Grasp::OPEN), key(1.0, o, o, open)];
                 for (i, y) in [0.15, -0.15, 0.15, -0.15, 0.0].into_iter().enumerate() {
-                    let t = 2.5 + 2.0 * i as f64;
+                    let t = 2.5 + 3.2 * i as f64;
                     frames.push(key(t, [0.0, y, -0.04], [0.0, 10.0 * y.signum(), 0.0], open));
                 }
-                frames.push(key(12.0, o, o, Grasp::OPEN));
+                frames.push(key(17.0, o, o, Grasp::OPEN));
                 (frames, Profile::MinJerk)
             }
             TaskKind::Fader => {
@@ -355,10 +362,38 @@ mod tests {
 
     #[test]
     fn pouring_turns_the_hand_90_deg_about_the_fingers() {
-        let s = TaskScript::new(TaskKind::Pouring).sample(6.0);
+        let s = TaskScript::new(TaskKind::Pouring).sample(9.5);
         let axis_angle = s.rotation.axis_angle().expect("rotated");
         assert!((axis_angle.1 - std::f64::consts::FRAC_PI_2).abs() < 1e-9);
         assert!((axis_angle.0.into_inner() - Vector3::z()).norm() < 1e-9);
+    }
+
+    /// Every task stays within what the arms may do (their Cartesian limit 0.2 m/s):
+    /// the hand itself, and the camera's goal 40 cm along the palm normal.
+    #[test]
+    fn no_task_asks_the_arms_for_more_than_their_speed_limit() {
+        for kind in TaskKind::ALL {
+            let script = TaskScript::new(kind);
+            let dt = 0.01;
+            let goal = |t: f64| {
+                let s = script.sample(t);
+                s.offset_m + s.rotation * Vector3::new(0.0, 0.4, 0.08)
+            };
+            let mut t = 0.0;
+            while t + dt <= script.duration_s() {
+                let a = script.sample(t);
+                let b = script.sample(t + dt);
+                let hand = (b.offset_m - a.offset_m).norm() / dt;
+                let camera = (goal(t + dt) - goal(t)).norm() / dt;
+                assert!(hand < 0.2, "{} at {t:.2} s: hand {hand} m/s", kind.name());
+                assert!(
+                    camera < 0.2,
+                    "{} at {t:.2} s: camera goal {camera} m/s",
+                    kind.name()
+                );
+                t += dt;
+            }
+        }
     }
 
     #[test]
