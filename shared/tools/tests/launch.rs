@@ -34,6 +34,24 @@ fn assert_every_node_stopped_gracefully(stdout: &str) {
     }
 }
 
+/// Runs `teleop` with `args` to its end, prints its output and asserts it succeeded;
+/// returns its standard output.
+fn launch_ok(args: &[&std::ffi::OsStr]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_teleop"))
+        .args(args)
+        .output()
+        .expect("run teleop launch");
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    println!("{stdout}");
+    assert!(
+        out.status.success(),
+        "launch failed ({}):\n{stdout}\n{stderr}",
+        out.status
+    );
+    stdout
+}
+
 #[test]
 fn launch_runs_the_system_and_stops_it_gracefully_with_a_summary() {
     let _one = one_system();
@@ -47,8 +65,8 @@ fn launch_runs_the_system_and_stops_it_gracefully_with_a_summary() {
             node.name
         );
     }
-    let out = Command::new(teleop)
-        .args([
+    let stdout = launch_ok(
+        &[
             "--domain-id",
             "91",
             "launch",
@@ -56,16 +74,8 @@ fn launch_runs_the_system_and_stops_it_gracefully_with_a_summary() {
             "7",
             "--quiet",
             "--no-report-files",
-        ])
-        .output()
-        .expect("run teleop launch");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    println!("{stdout}");
-    assert!(
-        out.status.success(),
-        "launch failed ({}):\n{stdout}\n{stderr}",
-        out.status
+        ]
+        .map(std::ffi::OsStr::new),
     );
     assert!(stdout.contains("== teleop launch: summary"), "{stdout}");
     assert_every_node_stopped_gracefully(&stdout);
@@ -111,7 +121,6 @@ const OFFLINE_TEST_MEAN_ERROR_RAD: f64 = 0.0948;
 #[test]
 fn tasks_run_once_and_meet_the_goals_in_the_report() {
     let _one = one_system();
-    let teleop = Path::new(env!("CARGO_BIN_EXE_teleop"));
     // Sharp corners at constant speed; and reaching, carrying, putting down.
     for (task, domain, duration) in [
         ("fader", "93", 15.0..40.0),
@@ -119,29 +128,22 @@ fn tasks_run_once_and_meet_the_goals_in_the_report() {
     ] {
         let dir =
             std::env::temp_dir().join(format!("teleop-report-test-{}-{task}", std::process::id()));
-        let out = Command::new(teleop)
-            .args([
-                "--domain-id",
-                domain,
-                "launch",
-                "--quiet",
-                "--task",
-                task,
-                "--report-dir",
-            ])
-            .arg(&dir)
+        let mut args = [
+            "--domain-id",
+            domain,
+            "launch",
+            "--quiet",
+            "--task",
+            task,
             // A bound in case the task never reports done.
-            .args(["--duration-s", "60"])
-            .output()
-            .expect("run teleop launch");
-        let stdout = String::from_utf8_lossy(&out.stdout);
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        println!("{stdout}");
-        assert!(
-            out.status.success(),
-            "launch failed ({}):\n{stdout}\n{stderr}",
-            out.status
-        );
+            "--duration-s",
+            "60",
+            "--report-dir",
+        ]
+        .map(std::ffi::OsStr::new)
+        .to_vec();
+        args.push(dir.as_os_str());
+        let stdout = launch_ok(&args);
         assert_every_node_stopped_gracefully(&stdout);
         let json: serde_json::Value = serde_json::from_str(
             &std::fs::read_to_string(dir.join("report.json")).expect("report.json written"),
