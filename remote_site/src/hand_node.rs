@@ -14,7 +14,9 @@ use teleop_interfaces::hardware::{PR2_ARM, SHADOW_HAND};
 use teleop_interfaces::{nodes, topics};
 use teleop_msgs::{JointState, Lifecycle, OperatorInput};
 use teleop_node::source::{self, CommanderConfig};
-use teleop_node::{FinalReport, Node, NodeConfig, SourceLock, check_controller_links};
+use teleop_node::{
+    FinalReport, LatencyHistogram, Node, NodeConfig, SourceLock, check_controller_links,
+};
 
 use crate::hand_controller::{HandSupervisor, HandSupervisorConfig};
 
@@ -78,6 +80,9 @@ pub struct HandNode {
     operator: Option<OperatorSample>,
     hardware_errors: u64,
     hardware_ok: bool,
+    /// Finger targets: the depth frame's capture (their stamp) -> received here, the
+    /// operator site's whole chain as this site sees it.
+    capture_to_received: LatencyHistogram,
     last_error: String,
 }
 
@@ -114,6 +119,7 @@ impl HandNode {
             operator: None,
             hardware_errors: 0,
             hardware_ok: false,
+            capture_to_received: LatencyHistogram::new("targets.capture_to_received"),
             last_error: String::new(),
         })
     }
@@ -135,10 +141,13 @@ impl Node for HandNode {
             self.commander
                 .disengaged(now_s, &mut [&mut self.target_sub, &mut self.input_sub]);
         }
-        if let Some(r) = self.target_sub.poll()
-            && let Err(e) = self.hand.accept_target(&r.msg, r.receive_time_s())
-        {
-            self.last_error = e.to_string();
+        if let Some(r) = self.target_sub.poll() {
+            match self.hand.accept_target(&r.msg, r.receive_time_s()) {
+                Ok(()) => self
+                    .capture_to_received
+                    .record_s(r.receive_time_s() - r.msg.header.stamp.as_secs_f64()),
+                Err(e) => self.last_error = e.to_string(),
+            }
         }
         if let Some(r) = self.input_sub.poll() {
             self.operator = Some(OperatorSample {
@@ -209,6 +218,7 @@ impl Node for HandNode {
         counters.push(("hand.bad_hardware_states".into(), self.hw.bad_states()));
         counters.extend(self.target_sub.named_counters());
         counters.extend(self.input_sub.named_counters());
+        self.capture_to_received.named(&mut counters);
         counters
     }
 

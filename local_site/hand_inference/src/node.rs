@@ -32,7 +32,6 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use hdrhistogram::Histogram;
 use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 use teleop_bus::{Bus, BusConfig, BusError, Clock, Publisher, Subscriber};
@@ -42,7 +41,7 @@ use teleop_hardware_bus::BusCamera;
 use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 use teleop_interfaces::{nodes, topics};
 use teleop_msgs::{Header, Image, JointState, Lifecycle, Pose, PoseStamped, encodings};
-use teleop_node::{FinalReport, Node, NodeConfig};
+use teleop_node::{FinalReport, LatencyHistogram, Node, NodeConfig};
 use teleop_render::Intrinsics;
 
 use crate::{HandEstimate, HandEstimator, InferenceError, JointModel, OnnxModel, OnnxOptions};
@@ -679,46 +678,6 @@ pub enum FrameOutcome {
     Failed(String),
 }
 
-/// A latency distribution in µs.
-#[derive(Debug)]
-struct Latency {
-    name: &'static str,
-    hist: Option<Histogram<u64>>,
-}
-
-impl Latency {
-    fn new(name: &'static str) -> Self {
-        // 1 µs .. 100 s at 3 significant digits; the bounds are constants.
-        Self {
-            name,
-            hist: Histogram::new_with_bounds(1, 100_000_000, 3).ok(),
-        }
-    }
-
-    fn record_s(&mut self, seconds: f64) {
-        if !seconds.is_finite() {
-            return;
-        }
-        // Negative (clock offset) counts as the smallest value.
-        let us = (seconds * 1e6).round().clamp(1.0, 1e12) as u64;
-        if let Some(h) = &mut self.hist {
-            h.saturating_record(us);
-        }
-    }
-
-    fn named(&self, out: &mut Vec<(String, u64)>) {
-        let (p50, p99, max) = match &self.hist {
-            Some(h) if !h.is_empty() => {
-                (h.value_at_quantile(0.5), h.value_at_quantile(0.99), h.max())
-            }
-            _ => (0, 0, 0),
-        };
-        for (q, v) in [("p50", p50), ("p99", p99), ("max", max)] {
-            out.push((format!("latency.{}_us.{q}", self.name), v));
-        }
-    }
-}
-
 /// The node's counters.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct InferenceCounters {
@@ -801,10 +760,10 @@ pub struct HandInferenceNode<M: JointModel> {
     wrist_poses: PoseBuffer,
     depth: Vec<u16>,
     counters: InferenceCounters,
-    capture_to_received: Latency,
-    processing: Latency,
-    capture_to_published: Latency,
-    sent_to_published: Latency,
+    capture_to_received: LatencyHistogram,
+    processing: LatencyHistogram,
+    capture_to_published: LatencyHistogram,
+    sent_to_published: LatencyHistogram,
     /// Woken by each arriving depth frame: the frame is processed at once.
     wake: Arc<tokio::sync::Notify>,
     started_s: Option<f64>,
@@ -856,10 +815,10 @@ impl<M: JointModel> HandInferenceNode<M> {
             wrist_poses: PoseBuffer::new(cfg.pose_buffer_s),
             depth: Vec::new(),
             counters: InferenceCounters::default(),
-            capture_to_received: Latency::new("capture_to_received"),
-            processing: Latency::new("processing"),
-            capture_to_published: Latency::new("capture_to_published"),
-            sent_to_published: Latency::new("sent_to_published"),
+            capture_to_received: LatencyHistogram::new("capture_to_received"),
+            processing: LatencyHistogram::new("processing"),
+            capture_to_published: LatencyHistogram::new("capture_to_published"),
+            sent_to_published: LatencyHistogram::new("sent_to_published"),
             wake,
             started_s: None,
             last_tick_s: None,

@@ -7,6 +7,7 @@
 
 pub mod args;
 pub mod config;
+pub mod latency;
 #[cfg(feature = "plot")]
 pub mod plot;
 pub mod runner;
@@ -16,6 +17,7 @@ pub mod stop;
 
 pub use args::{NodeArgs, ZenohArgs};
 pub use config::{ConfigError, NodeConfig};
+pub use latency::LatencyHistogram;
 pub use runner::{FinalReport, Node, Periodic, run};
 pub use source::SourceLock;
 pub use status::StatusReporter;

@@ -78,6 +78,9 @@ pub struct RunReport {
     pub latency: Vec<StageLatency>,
     /// Hand inference's own stage timings (its status counters), µs.
     pub hand_inference_stages_us: BTreeMap<String, u64>,
+    /// The Shadow hand controller's own measurement (its status counters), µs: finger
+    /// targets from their depth frame's capture to their arrival at the robot site.
+    pub hand_controller_stages_us: BTreeMap<String, u64>,
     /// Camera position error against its goal, m.
     pub camera_position_error_m: ErrorSummary,
     /// Camera viewing-direction error against its goal, deg.
@@ -588,10 +591,18 @@ impl Recorder {
                 }
             }
         }
-        if let Some(s) = finals.get(teleop_interfaces::nodes::HAND_INFERENCE) {
-            for (n, v) in s.counter_names.iter().zip(&s.counter_values) {
-                if n.starts_with("latency.") {
-                    r.hand_inference_stages_us.insert(n.clone(), *v);
+        for (node, stages) in [
+            (
+                teleop_interfaces::nodes::HAND_INFERENCE,
+                &mut r.hand_inference_stages_us,
+            ),
+            ("shadow_hand_controller", &mut r.hand_controller_stages_us),
+        ] {
+            if let Some(s) = finals.get(node) {
+                for (n, v) in s.counter_names.iter().zip(&s.counter_values) {
+                    if n.starts_with("latency.") {
+                        stages.insert(n.clone(), *v);
+                    }
                 }
             }
         }
@@ -621,9 +632,17 @@ impl RunReport {
                 l.stage, l.samples, l.p50_ms, l.p99_ms, l.max_ms
             );
         }
-        if !self.hand_inference_stages_us.is_empty() {
-            let stages: Vec<String> = self
-                .hand_inference_stages_us
+        for (who, stages) in [
+            ("hand inference", &self.hand_inference_stages_us),
+            (
+                "Shadow hand controller (robot site)",
+                &self.hand_controller_stages_us,
+            ),
+        ] {
+            if stages.is_empty() {
+                continue;
+            }
+            let stages: Vec<String> = stages
                 .iter()
                 .filter(|(k, _)| !k.ends_with(".max"))
                 .map(|(k, v)| {
@@ -634,7 +653,7 @@ impl RunReport {
                     )
                 })
                 .collect();
-            let _ = writeln!(s, "  hand inference: {}", stages.join(", "));
+            let _ = writeln!(s, "  {who}: {}", stages.join(", "));
         }
         let c = &self.camera_position_error_m;
         let _ = writeln!(

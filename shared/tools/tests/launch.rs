@@ -197,6 +197,14 @@ fn tasks_run_once_and_meet_the_goals_in_the_report() {
             nested("pr2_position_error_m", "mean") <= 0.005,
             "{task}: {json}"
         );
+        // The robot site measured the finger targets' age on arrival itself.
+        let remote = &json["hand_controller_stages_us"];
+        assert!(
+            remote["latency.targets.capture_to_received_us.p50"]
+                .as_u64()
+                .is_some_and(|v| v > 0),
+            "{task}: {remote}"
+        );
         // Every latency stage was measured.
         for stage in json["latency"].as_array().expect("latency") {
             assert!(
