@@ -72,8 +72,10 @@ pub const TRACKER_FRAME: &str = "tracker";
 pub struct WristTrackerConfig {
     /// Node name (unique across both sites).
     pub node_name: String,
-    /// Frame id of published poses. Unset: [`BASE_FRAME`] when the poses are
-    /// registered into the UR5 base (the `mocap` source, or
+    /// Frame id of published poses. Unset: the PR2 torso
+    /// ([`crate::tracking::imu_arm::TORSO_FRAME`]) for a BVH source with the arm
+    /// registration (`[source.arm]`, the chapter-6 absolute mode), [`BASE_FRAME`] when
+    /// the poses are registered into the UR5 base (the `mocap` source, or
     /// `registration.base_from_tracker` given), [`TRACKER_FRAME`] otherwise.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub frame_id: Option<String>,
@@ -131,6 +133,9 @@ impl WristTrackerConfig {
     pub fn frame_id_in_effect(&self) -> String {
         match &self.frame_id {
             Some(f) => f.clone(),
+            None if matches!(&self.source, TrackerSource::Bvh(b) if b.arm.is_some()) => {
+                crate::tracking::imu_arm::TORSO_FRAME.into()
+            }
             None if matches!(self.source, TrackerSource::Mocap(_))
                 || self.registration.base_from_tracker.is_some() =>
             {
@@ -1318,6 +1323,21 @@ mod tests {
         };
         assert_eq!(b.reference_joint, "Spine3");
         assert_eq!(b.hand_joint, "RightHand");
+        assert_eq!(bvh.frame_id_in_effect(), TRACKER_FRAME);
+        // With the chapter-6 arm registration the poses are PR2 targets in the torso.
+        let absolute: WristTrackerConfig = toml::from_str(
+            "[source]\nkind = \"bvh\"\naddress = \"10.0.0.5:7001\"\nskeleton = \"neuron.bvh\"\n\
+             [source.arm]\nelbow_joint = \"RightForeArm\"\n",
+        )
+        .expect("bvh source with the arm registration");
+        assert_eq!(absolute.frame_id_in_effect(), "torso_lift_link");
+        absolute.validate().expect("valid");
+        let typo = toml::from_str::<WristTrackerConfig>(
+            "[source]\nkind = \"bvh\"\naddress = \"h:1\"\nskeleton = \"n.bvh\"\n\
+             [source.arm]\nratio = 1.3\n",
+        )
+        .expect_err("unknown field");
+        assert!(typo.to_string().contains("ratio"), "{typo}");
         let typo = toml::from_str::<WristTrackerConfig>(
             "[source]\nkind = \"replay\"\npath = \"p.csv\"\nmax_gap = 1.0\n",
         )

@@ -218,6 +218,7 @@ fn tracker_reads_a_live_broadcast() {
         to_metres: 0.01,
         stale_after_s: 0.2,
         reconnect_s: 0.05,
+        arm: None,
     };
     config.validate().expect("valid");
     let mut tracker = BvhStreamTracker::start(&config).expect("starts");

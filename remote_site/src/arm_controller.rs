@@ -25,6 +25,11 @@
 //!
 //!   Releasing the clutch stops the arm; pressing it again starts from the new poses,
 //!   so the operator can re-centre.
+//! * **Absolute mode** ([`ArmMode::Absolute`], thesis ch. 6 with the IMU suit): each
+//!   wrist pose is the palm's target in the torso frame, scaled to the robot's arm by
+//!   the operator site; the target is `base_from_frame * pose`. The clutch engages only
+//!   when that target is near the palm (`absolute.engage_within_m` / `_deg`), so the
+//!   arm never sets off across its workspace; everything below applies unchanged.
 //! * **Filters.** Every wrist pose passes the jump filter (> 50 cm along an axis or > 60
 //!   deg since the last accepted pose is rejected, named and counted); the target passes
 //!   the Cartesian limiter (0.2 m/s, 2 rad/s, 2 m/s^2); the IK (thesis: bio_ik with a
@@ -75,6 +80,54 @@ pub enum RelativeFrame {
     BaseAligned,
     /// The motion in the hand's own frame applied in the palm's frame.
     Wrist,
+}
+
+/// How the arm follows the operator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ArmMode {
+    /// Clutched relative control (thesis ch. 7): the arm copies the hand's motion since
+    /// the clutch press. The default.
+    #[default]
+    Relative,
+    /// Absolute following (thesis ch. 6, the IMU suit): each wrist pose is the palm's
+    /// target in [`AbsoluteConfig::frame_id`] (the torso), already scaled to the robot's
+    /// arm by the operator site. Same gate, clutch, filters, limits and watchdogs; the
+    /// motion scale is not applied (the arm-length ratio is the scale).
+    Absolute,
+}
+
+/// The absolute mode's settings, `[arm.absolute]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AbsoluteConfig {
+    /// The frame the targets must be in (their `header.frame_id`); a pose in any other
+    /// frame is refused and counted (`wrist_pose.rejected_frame_id`). Default
+    /// `torso_lift_link`.
+    pub frame_id: String,
+    /// That frame in the arm's base frame (`base_link`). Default: the torso at the
+    /// model's height, `(-0.05, 0, 0.739675)` m (the PR2 URDF's `torso_lift_joint`).
+    pub base_from_frame: TransformConfig,
+    /// The clutch engages only while the target is within this distance of the palm,
+    /// m (otherwise the arm holds, `arm.stop.target_far_from_arm`): the operator first
+    /// brings the arm's pose to the robot's. Default 0.15.
+    pub engage_within_m: f64,
+    /// ... and within this angle of the palm's orientation, deg. Default 45.
+    pub engage_within_deg: f64,
+}
+
+impl Default for AbsoluteConfig {
+    fn default() -> Self {
+        Self {
+            frame_id: teleop_kinematics::robots::pr2::TORSO.into(),
+            base_from_frame: TransformConfig {
+                translation_m: [-0.05, 0.0, 0.739675],
+                rpy_deg: [0.0; 3],
+            },
+            engage_within_m: 0.15,
+            engage_within_deg: 45.0,
+        }
+    }
 }
 
 /// What the IK's regularization goal pulls toward.
@@ -153,6 +206,10 @@ pub struct ArmControllerConfig {
     pub joint_velocity_fraction: f64,
     pub jump: JumpFilterConfig,
     pub cartesian: CartesianLimits,
+    /// Relative (default) or absolute following.
+    pub mode: ArmMode,
+    /// The absolute mode's settings.
+    pub absolute: AbsoluteConfig,
 }
 
 impl Default for ArmControllerConfig {
@@ -174,6 +231,8 @@ impl Default for ArmControllerConfig {
             joint_velocity_fraction: 1.0,
             jump: JumpFilterConfig::default(),
             cartesian: CartesianLimits::default(),
+            mode: ArmMode::Relative,
+            absolute: AbsoluteConfig::default(),
         }
     }
 }
@@ -208,6 +267,18 @@ impl ArmControllerConfig {
                 1e-3,
                 1.0,
             ),
+            (
+                "absolute.engage_within_m",
+                self.absolute.engage_within_m,
+                1e-3,
+                2.0,
+            ),
+            (
+                "absolute.engage_within_deg",
+                self.absolute.engage_within_deg,
+                0.1,
+                180.0,
+            ),
         ];
         teleop_control::check_ranges("arm", &checks)?;
         TransformConfig {
@@ -216,6 +287,12 @@ impl ArmControllerConfig {
         }
         .validate("arm.operator_to_robot_rpy_deg")?;
         self.marker_to_hand.validate("arm.marker_to_hand")?;
+        self.absolute
+            .base_from_frame
+            .validate("arm.absolute.base_from_frame")?;
+        if self.absolute.frame_id.trim().is_empty() {
+            return Err("arm.absolute.frame_id is empty".into());
+        }
         self.jump.validate().map_err(|e| format!("arm.jump: {e}"))?;
         self.cartesian
             .validate()
@@ -279,6 +356,9 @@ pub enum StopReason {
     /// Clutch pressed, but the wrist poses and the pedals come from different operator
     /// sites: no engagement.
     CommanderConflict,
+    /// Absolute mode: clutch pressed, but the target is farther from the palm than
+    /// `absolute.engage_within_m` / `_deg`: no engagement.
+    TargetFarFromArm,
 }
 
 impl StopReason {
@@ -295,6 +375,7 @@ impl StopReason {
             StopReason::AwaitingClutchRelease => "awaiting_clutch_release",
             StopReason::NoWristPose => "no_wrist_pose",
             StopReason::CommanderConflict => "commander_conflict",
+            StopReason::TargetFarFromArm => "target_far_from_arm",
         }
     }
 
@@ -306,6 +387,7 @@ impl StopReason {
                 | StopReason::AwaitingClutchRelease
                 | StopReason::NoWristPose
                 | StopReason::CommanderConflict
+                | StopReason::TargetFarFromArm
         )
     }
 }
@@ -348,6 +430,7 @@ pub struct ArmController {
     gate: OperatorGate,
     operator_to_robot: UnitQuaternion<f64>,
     marker_to_hand: Isometry3<f64>,
+    base_from_absolute: Isometry3<f64>,
     last_step_s: Option<f64>,
     solver: Solver<7>,
     jump: JumpFilter,
@@ -403,6 +486,7 @@ impl ArmController {
             },
             operator_to_robot: UnitQuaternion::from_euler_angles(r, p, y),
             marker_to_hand: cfg.marker_to_hand.isometry(),
+            base_from_absolute: cfg.absolute.base_from_frame.isometry(),
             last_step_s: None,
             cfg,
             solver,
@@ -570,11 +654,21 @@ impl ArmController {
                     return self.stop(StopReason::NoWristPose);
                 }
                 let robot_ref = self.solver.chain().end_pose(&arm.position_rad);
+                let human = w.pose * self.marker_to_hand;
+                if self.cfg.mode == ArmMode::Absolute {
+                    let target = self.base_from_absolute * human;
+                    let far = (target.translation.vector - robot_ref.translation.vector).norm()
+                        > self.cfg.absolute.engage_within_m
+                        || target.rotation.angle_to(&robot_ref.rotation).to_degrees()
+                            > self.cfg.absolute.engage_within_deg;
+                    if far {
+                        return self.stop(StopReason::TargetFarFromArm);
+                    }
+                }
                 if self.limiter.reset(&robot_ref).is_err() {
                     return self.stop(StopReason::InvalidArmState);
                 }
                 self.counters.engagements += 1;
-                let human = w.pose * self.marker_to_hand;
                 Engaged {
                     human_ref: human,
                     robot_ref,
@@ -606,12 +700,15 @@ impl ArmController {
             self.engaged = Some(engaged);
             return self.stop(StopReason::StaleWristPose);
         }
-        let target = self.relative_target(
-            &engaged.human_ref,
-            &engaged.human_now,
-            &engaged.robot_ref,
-            op.motion_scale,
-        );
+        let target = match self.cfg.mode {
+            ArmMode::Relative => self.relative_target(
+                &engaged.human_ref,
+                &engaged.human_now,
+                &engaged.robot_ref,
+                op.motion_scale,
+            ),
+            ArmMode::Absolute => self.base_from_absolute * engaged.human_now,
+        };
         let limited = match self.limiter.step(&target, dt) {
             Ok(p) => p,
             Err(_) => {

@@ -15,7 +15,7 @@ use teleop_node::source::{self, CommanderConfig};
 use teleop_node::{FinalReport, Node, NodeConfig, SourceLock, check_controller_links};
 
 use crate::arm_controller::{
-    ArmCommand, ArmController, ArmControllerConfig, ArmInputs, OperatorSample, WristSample,
+    ArmCommand, ArmController, ArmControllerConfig, ArmInputs, ArmMode, OperatorSample, WristSample,
 };
 
 /// Configuration of the `pr2_arm_controller` node.
@@ -74,6 +74,7 @@ pub struct ArmNode {
     wrist: Option<WristSample>,
     operator: Option<OperatorSample>,
     hardware_errors: u64,
+    rejected_frame_ids: u64,
     hardware_ok: bool,
     last_error: String,
 }
@@ -103,6 +104,7 @@ impl ArmNode {
             wrist: None,
             operator: None,
             hardware_errors: 0,
+            rejected_frame_ids: 0,
             hardware_ok: false,
             last_error: String::new(),
         })
@@ -127,10 +129,20 @@ impl Node for ArmNode {
                 .disengaged(now_s, &mut [&mut self.wrist_sub, &mut self.input_sub]);
         }
         if let Some(r) = self.wrist_sub.poll() {
-            self.wrist = Some(WristSample {
-                received_s: r.receive_time_s(),
-                pose: isometry(&r.msg.pose),
-            });
+            let cfg = self.ctrl.config();
+            if cfg.mode == ArmMode::Absolute && r.msg.header.frame_id != cfg.absolute.frame_id {
+                // An absolute target in another frame would put the arm somewhere else.
+                self.rejected_frame_ids += 1;
+                self.last_error = format!(
+                    "wrist pose in frame `{}` refused: the absolute mode takes `{}` only",
+                    r.msg.header.frame_id, cfg.absolute.frame_id
+                );
+            } else {
+                self.wrist = Some(WristSample {
+                    received_s: r.receive_time_s(),
+                    pose: isometry(&r.msg.pose),
+                });
+            }
         }
         if let Some(r) = self.input_sub.poll() {
             self.operator = Some(OperatorSample {
@@ -198,6 +210,10 @@ impl Node for ArmNode {
     fn counters(&self) -> Vec<(String, u64)> {
         let mut counters = self.ctrl.named_counters();
         counters.push(("arm.hardware_errors".into(), self.hardware_errors));
+        counters.push((
+            "wrist_pose.rejected_frame_id".into(),
+            self.rejected_frame_ids,
+        ));
         counters.push(("arm.bad_hardware_states".into(), self.hw.bad_states()));
         counters.extend(self.wrist_sub.named_counters());
         counters.extend(self.input_sub.named_counters());
@@ -225,6 +241,7 @@ pub async fn run(cfg: ArmNodeConfig, duration: Option<Duration>) -> anyhow::Resu
     let node = ArmNode::new(&cfg, &bus).await?;
     tracing::info!(
         rate_hz = cfg.arm.rate_hz,
+        mode = ?cfg.arm.mode,
         "PR2 arm controller: arm disabled until clutch + enable"
     );
     teleop_node::run(bus, node, teleop_node::stop_signal(duration)).await

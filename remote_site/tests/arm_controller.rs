@@ -410,3 +410,142 @@ fn a_commander_conflict_blocks_engagement_but_not_an_engaged_arm() {
     r.wrist.translation.vector.x += 0.01;
     assert_eq!(r.step().stopped, None);
 }
+
+/// The absolute mode's rig: the target in the torso frame, placed relative to the
+/// palm's pose at the start.
+fn absolute_rig(offset: Translation3<f64>) -> (Rig, Isometry3<f64>) {
+    use teleop_remote_site::arm_controller::ArmMode;
+    let cfg = ArmControllerConfig {
+        mode: ArmMode::Absolute,
+        ..ArmControllerConfig::default()
+    };
+    let base_from_torso = cfg.absolute.base_from_frame.isometry();
+    let mut r = Rig::with(cfg);
+    let palm_in_torso = base_from_torso.inverse() * r.palm();
+    r.wrist = Isometry3::from_parts(offset, UnitQuaternion::identity()) * palm_in_torso;
+    (r, base_from_torso)
+}
+
+#[test]
+fn absolute_mode_follows_the_target_in_the_torso_frame_ignoring_the_motion_scale() {
+    let (mut r, base_from_torso) = absolute_rig(Translation3::new(0.05, 0.0, 0.0));
+    r.clutch = true;
+    r.scale = 1.0 / 3.0; // not applied: the operator site scaled the target already
+    let start = r.wrist;
+    // The target moves 10 cm along the torso's y and turns 15 deg about its own z over
+    // 2 s (0.05 m/s), then holds.
+    for k in 1..=60 {
+        let f = f64::from(k) / 60.0;
+        r.wrist = Isometry3::from_parts(
+            Translation3::new(0.0, -0.10 * f, 0.0),
+            UnitQuaternion::identity(),
+        ) * start
+            * Isometry3::rotation(Vector3::z() * 15f64.to_radians() * f);
+        let out = r.step();
+        assert_eq!(out.stopped, None, "step {k}: {:?}", out.stopped);
+    }
+    for _ in 0..60 {
+        r.step();
+    }
+    let want = base_from_torso * r.wrist;
+    let got = r.palm();
+    let dp = (got.translation.vector - want.translation.vector).norm();
+    let da = got.rotation.angle_to(&want.rotation).to_degrees();
+    assert!(dp < 0.003, "palm {dp} m from the absolute target");
+    assert!(da < 2.0, "palm {da} deg from the absolute target");
+    assert_eq!(r.ctrl.counters().engagements, 1);
+}
+
+#[test]
+fn absolute_mode_engages_only_near_the_target_and_approaches_at_the_speed_limit() {
+    // 30 cm away: the clutch does not engage, the arm holds, and says why.
+    let (mut r, _) = absolute_rig(Translation3::new(0.0, 0.3, 0.0));
+    r.clutch = true;
+    for _ in 0..10 {
+        let out = r.step();
+        assert_eq!(out.stopped, Some(StopReason::TargetFarFromArm));
+        assert_eq!(out.command.velocity_rad_s, SVector::<f64, 7>::zeros());
+    }
+    assert_eq!(r.ctrl.counters().engagements, 0);
+    assert_eq!(r.ctrl.counters().safety_stops, 0, "not a safety stop");
+    // 12 cm away (within 15 cm): it engages and goes there, its target moving no faster
+    // than 0.2 m/s (the Cartesian limiter); the palm, pulled onto the IK solution by
+    // the feedback term, within 15 % of that.
+    let (mut r, base_from_torso) = absolute_rig(Translation3::new(0.0, 0.12, 0.0));
+    r.clutch = true;
+    let mut last = r.palm().translation.vector;
+    let mut last_target: Option<Vector3<f64>> = None;
+    let (mut fastest_palm, mut fastest_target): (f64, f64) = (0.0, 0.0);
+    for _ in 0..90 {
+        let out = r.step();
+        assert_eq!(out.stopped, None);
+        let target = out.target.unwrap().translation.vector;
+        if let Some(t) = last_target {
+            fastest_target = fastest_target.max((target - t).norm() / DT);
+        }
+        last_target = Some(target);
+        let p = r.palm().translation.vector;
+        fastest_palm = fastest_palm.max((p - last).norm() / DT);
+        last = p;
+    }
+    let dp = (r.palm().translation.vector - (base_from_torso * r.wrist).translation.vector).norm();
+    assert!(dp < 0.003, "palm {dp} m from the target after 3 s");
+    assert!(
+        fastest_target <= 0.2 + 1e-9,
+        "target moved at {fastest_target} m/s"
+    );
+    assert!(
+        fastest_target > 0.19,
+        "the approach used {fastest_target} m/s only"
+    );
+    assert!(
+        fastest_palm <= 0.2 * 1.15,
+        "palm moved at {fastest_palm} m/s"
+    );
+}
+
+#[test]
+fn absolute_mode_keeps_the_watchdogs_and_the_jump_filter() {
+    let (mut r, _) = absolute_rig(Translation3::new(0.02, 0.0, 0.0));
+    r.clutch = true;
+    r.step();
+    assert!(r.ctrl.is_engaged());
+    // A 70 cm jump of the target is refused: the arm does not go there.
+    let before = r.palm();
+    r.wrist.translation.vector.z += 0.7;
+    for _ in 0..5 {
+        r.step();
+    }
+    assert!((r.palm().translation.vector - before.translation.vector).norm() < 0.05);
+    assert!(r.ctrl.counters().rejected_wrist_poses > 0);
+    // ... and with no valid pose for longer than the deadline the arm stops and latches.
+    for _ in 0..5 {
+        r.step();
+    }
+    assert!(!r.ctrl.is_engaged());
+    assert_eq!(r.ctrl.latched(), Some(StopReason::StaleWristPose));
+    assert_eq!(r.step().command.velocity_rad_s, SVector::<f64, 7>::zeros());
+    // The stream stopping is the same stale pose.
+    let (mut r, _) = absolute_rig(Translation3::new(0.02, 0.0, 0.0));
+    r.clutch = true;
+    r.step();
+    r.send_wrist = false;
+    let stops: Vec<_> = (0..6).map(|_| r.step().stopped).collect();
+    assert_eq!(stops.last(), Some(&Some(StopReason::AwaitingClutchRelease)));
+    assert!(stops.contains(&Some(StopReason::StaleWristPose)));
+}
+
+#[test]
+fn the_absolute_frame_default_is_the_models_torso() {
+    let cfg = teleop_remote_site::arm_controller::AbsoluteConfig::default();
+    let robot = robots::pr2_arm().unwrap();
+    let torso = robot
+        .chain(robots::pr2::BASE, robots::pr2::TORSO)
+        .unwrap()
+        .end_pose(&[])
+        .unwrap();
+    let ours = cfg.base_from_frame.isometry();
+    assert!((torso.translation.vector - ours.translation.vector).norm() < 1e-9);
+    assert!(torso.rotation.angle_to(&ours.rotation) < 1e-9);
+    assert_eq!(cfg.frame_id, robots::pr2::TORSO);
+}

@@ -31,6 +31,8 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 use teleop_hardware::{HardwareError, WristTracker};
 
+use crate::tracking::imu_arm::{HumanArm, ImuArmConfig, ImuArmMapping};
+
 /// Errors of BVH parsing and streaming.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
@@ -49,6 +51,8 @@ pub enum BvhError {
     BadValue { index: usize, token: String },
     #[error("BVH stream frame has no `<avatar index> <avatar name>` prefix")]
     BadPrefix,
+    #[error("BVH frame gives a zero-length arm (shoulder, elbow and hand coincide)")]
+    DegenerateArm,
 }
 
 /// One channel of a joint.
@@ -472,6 +476,11 @@ pub struct BvhStreamConfig {
     /// Wait between reconnection attempts, s.
     #[serde(default = "default_reconnect_s")]
     pub reconnect_s: f64,
+    /// The chapter-6 registration (`[source.arm]`): when set, the source yields the
+    /// PR2 palm's target in the torso frame ([`crate::tracking::imu_arm`]), scaled by
+    /// the arm-length ratio, instead of the palm relative to the spine.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub arm: Option<ImuArmConfig>,
 }
 
 fn default_reference() -> String {
@@ -507,6 +516,9 @@ impl BvhStreamConfig {
         }
         if self.address.trim().is_empty() {
             return Err("bvh.address is empty (expected host:port)".into());
+        }
+        if let Some(arm) = &self.arm {
+            arm.validate()?;
         }
         Ok(())
     }
@@ -547,11 +559,23 @@ impl BvhStreamTracker {
         let (skeleton, _) = Skeleton::load(&config.skeleton)?;
         let reference = skeleton.joint(&config.reference_joint)?;
         let hand = skeleton.joint(&config.hand_joint)?;
+        let arm = match &config.arm {
+            Some(a) => Some(ArmJoints {
+                shoulder: skeleton.joint(&a.shoulder_joint)?,
+                elbow: skeleton.joint(&a.elbow_joint)?,
+                mapping: ImuArmMapping::new(a).map_err(|e| BvhError::Io {
+                    path: config.skeleton.clone(),
+                    reason: e.to_string(),
+                })?,
+            }),
+            None => None,
+        };
         let shared = Arc::new(Mutex::new(Shared::default()));
         let reader = Reader {
             skeleton,
             reference,
             hand,
+            arm,
             avatar_index: config.avatar_index,
             to_metres: config.to_metres,
             address: config.address.clone(),
@@ -611,10 +635,18 @@ impl WristTracker for BvhStreamTracker {
     }
 }
 
+/// The joints and the mapping of the chapter-6 registration.
+struct ArmJoints {
+    shoulder: usize,
+    elbow: usize,
+    mapping: ImuArmMapping,
+}
+
 struct Reader {
     skeleton: Skeleton,
     reference: usize,
     hand: usize,
+    arm: Option<ArmJoints>,
     avatar_index: u32,
     to_metres: f64,
     address: String,
@@ -694,6 +726,26 @@ impl Reader {
         }
     }
 
+    /// The source's pose for one frame: the palm in the spine frame, or with the arm
+    /// registration the PR2 palm target in the torso frame.
+    fn pose(&self, values: &[f64]) -> Result<Isometry3<f64>, BvhError> {
+        let Some(arm) = &self.arm else {
+            return self
+                .skeleton
+                .relative_pose(values, self.reference, self.hand, self.to_metres);
+        };
+        let world = self.skeleton.world_poses(values, self.to_metres)?;
+        let in_spine = |j: usize| world[self.reference].inverse() * world[j];
+        let human = HumanArm {
+            shoulder: in_spine(arm.shoulder).translation.vector.into(),
+            elbow: in_spine(arm.elbow).translation.vector.into(),
+            hand: in_spine(self.hand),
+        };
+        arm.mapping
+            .palm_target(&human)
+            .ok_or(BvhError::DegenerateArm)
+    }
+
     fn handle(&self, bytes: &[u8]) {
         let Ok(text) = std::str::from_utf8(bytes) else {
             self.update(|s| s.counters.rejected += 1);
@@ -706,9 +758,7 @@ impl Reader {
             if f.avatar_index != self.avatar_index {
                 return Ok(None);
             }
-            self.skeleton
-                .relative_pose(&f.values, self.reference, self.hand, self.to_metres)
-                .map(Some)
+            self.pose(&f.values).map(Some)
         });
         match pose {
             Ok(Some(pose)) => self.update(|s| {

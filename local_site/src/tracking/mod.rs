@@ -3,4 +3,5 @@
 //! [`teleop_hardware::WristTracker`], so the wrist tracker node runs on any of them.
 
 pub mod bvh;
+pub mod imu_arm;
 pub mod replay;
