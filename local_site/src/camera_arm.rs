@@ -14,6 +14,10 @@
 //!   axis is 180 deg, inside the [150, 180] deg band where the thesis's viewpoint
 //!   analysis (ch. 5.4.4, Fig. 5.12) found most joints best estimated, and the view the
 //!   hand networks were trained on. [`ViewSide::Back`] looks at the back of the hand.
+//!   **Within reach:** a goal farther than `max_reach_m` (0.75 m) from the UR5's
+//!   shoulder (a hand turned so its palm faces away from the arm, as in pouring) is
+//!   moved round the hand, at the same standoff and still looking at it, to the nearest
+//!   reachable view ([`camera_goal_within_reach`]).
 //! * **IK.** A pose goal (weight 1, rotation weighed by `rotation_scale`), a
 //!   regularization goal toward the previous solution (thesis: 0.5 as bio_ik weighs it;
 //!   1 over-smoothed by ~10 cm on fast motion), the thesis's anti-redundancy rule (the
@@ -114,6 +118,13 @@ pub struct CameraArmConfig {
     pub reacquire_radius_m: f64,
     /// ...for this long are the hand's new position.
     pub reacquire_after_s: f64,
+    /// The view within reach: when the goal would put the camera farther than this from
+    /// `reach_centre_m`, the camera moves round the hand (same standoff, still looking
+    /// at it) to the nearest view direction that is within it, m. Default 0.75: the
+    /// UR5's 0.85 m reach less the camera's mount and a margin for the orientation.
+    pub max_reach_m: f64,
+    /// The centre of the arm's reach in its base frame (the UR5's shoulder), m.
+    pub reach_centre_m: [f64; 3],
     pub jump: JumpFilterConfig,
     pub cartesian: CartesianLimits,
 }
@@ -137,6 +148,8 @@ impl Default for CameraArmConfig {
             pose_deadline_s: 0.2,
             reacquire_radius_m: 0.05,
             reacquire_after_s: 0.5,
+            max_reach_m: 0.75,
+            reach_centre_m: [0.0, 0.0, 0.089159],
             jump: JumpFilterConfig::default(),
             cartesian: CartesianLimits::default(),
         }
@@ -177,8 +190,16 @@ impl CameraArmConfig {
             ("pose_deadline_s", self.pose_deadline_s, 1e-3, 10.0),
             ("reacquire_radius_m", self.reacquire_radius_m, 1e-3, 1.0),
             ("reacquire_after_s", self.reacquire_after_s, 0.0, 10.0),
+            ("max_reach_m", self.max_reach_m, 0.2, 10.0),
         ];
         teleop_control::check_ranges("camera_arm", &checks)?;
+        if !self
+            .reach_centre_m
+            .iter()
+            .all(|v| v.is_finite() && v.abs() <= 2.0)
+        {
+            return Err("camera_arm.reach_centre_m must be finite and within 2 m".into());
+        }
         if !self
             .look_at_in_hand_m
             .iter()
@@ -218,6 +239,73 @@ pub fn camera_goal(
         (centre.coords + offset_dir * standoff_m).into(),
         UnitQuaternion::from_rotation_matrix(&rotation),
     )
+}
+
+/// The camera goal for a hand pose with the view kept within reach: [`camera_goal`],
+/// unless that puts the camera farther than `max_reach_m` from `reach_centre`; then the
+/// camera stays `standoff_m` from the hand centre and looking at it, on the nearest
+/// direction (turned from the preferred one toward the reach centre) that is within
+/// reach, image up still as close to the fingers as the view allows. A hand too far
+/// for any view gets the direction toward the reach centre.
+pub fn camera_goal_within_reach(
+    hand: &Isometry3<f64>,
+    standoff_m: f64,
+    side: ViewSide,
+    look_at_in_hand: &Vector3<f64>,
+    reach_centre: &Vector3<f64>,
+    max_reach_m: f64,
+) -> Isometry3<f64> {
+    let goal = camera_goal(hand, standoff_m, side, look_at_in_hand);
+    if (goal.translation.vector - reach_centre).norm() <= max_reach_m {
+        return goal;
+    }
+    let centre = (hand * nalgebra::Point3::from(*look_at_in_hand)).coords;
+    let to_reach = reach_centre - centre;
+    let d = to_reach.norm();
+    let Some(u) = Unit::try_new(to_reach, 1e-9) else {
+        return goal;
+    };
+    let preferred = -(goal.rotation * Vector3::z());
+    // |centre + r dir - reach_centre| <= R  <=>  cos(dir, u) >= k.
+    let k = (d * d + standoff_m * standoff_m - max_reach_m * max_reach_m) / (2.0 * standoff_m * d);
+    let dir = if k >= 1.0 {
+        u.into_inner()
+    } else {
+        let across = preferred - u.into_inner() * preferred.dot(&u);
+        match Unit::try_new(across, 1e-9) {
+            Some(w) => {
+                let phi = k.max(-1.0).acos();
+                u.into_inner() * phi.cos() + w.into_inner() * phi.sin()
+            }
+            None => u.into_inner(),
+        }
+    };
+    let z_cam = -dir;
+    let fingers = hand.rotation * Vector3::z();
+    let up = -fingers - z_cam * (-fingers).dot(&z_cam);
+    let y_cam = Unit::try_new(up, 1e-6)
+        .map(Unit::into_inner)
+        .unwrap_or_else(|| z_cam.cross(&Vector3::x()).normalize());
+    let x_cam = y_cam.cross(&z_cam);
+    let rotation = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x_cam, y_cam, z_cam]));
+    Isometry3::from_parts(
+        (centre + dir * standoff_m).into(),
+        UnitQuaternion::from_rotation_matrix(&rotation),
+    )
+}
+
+impl CameraArmConfig {
+    /// The camera goal for a hand pose with these settings (within reach).
+    pub fn goal_for(&self, hand: &Isometry3<f64>) -> Isometry3<f64> {
+        camera_goal_within_reach(
+            hand,
+            self.standoff_m,
+            self.side,
+            &Vector3::from(self.look_at_in_hand_m),
+            &Vector3::from(self.reach_centre_m),
+            self.max_reach_m,
+        )
+    }
 }
 
 /// A hand pose as received (node clock): the hand frame in the UR5 base frame.
@@ -474,12 +562,7 @@ impl CameraArmController {
 
     /// The camera goal for a hand pose, with this controller's settings.
     pub fn goal_for(&self, hand: &Isometry3<f64>) -> Isometry3<f64> {
-        camera_goal(
-            hand,
-            self.cfg.standoff_m,
-            self.cfg.side,
-            &Vector3::from(self.cfg.look_at_in_hand_m),
-        )
+        self.cfg.goal_for(hand)
     }
 
     fn frames(&self, q: &SVector<f64, UR5_DOF>) -> Option<Vec<Isometry3<f64>>> {

@@ -12,14 +12,20 @@
 //!   (the tracked marker pose times the marker-to-hand calibration) and the robot's
 //!   palm pose `R_ref`. While engaged the target follows the operator's motion since
 //!   then, its translation multiplied by the motion scale (the thesis used 1/3 for fine
-//!   tasks), in one of two frames ([`RelativeFrame`]):
-//!   * **base-aligned** (default): the hand's displacement `H_now.t - H_ref.t` and
-//!     rotation `H_now.R H_ref.R^T`, both in the tracker frame, are turned into the
-//!     robot's base frame by the fixed operator-to-robot rotation `A`:
-//!     `t = R_ref.t + s A (H_now.t - H_ref.t)`, `R = (A H_now.R H_ref.R^T A^T) R_ref.R`.
-//!     Moving the hand to the operator's right moves the robot to the robot's right,
-//!     however the hand was turned at the clutch press;
-//!   * **wrist** (the earlier behaviour): `R_ref * scale(H_ref^-1 * H_now)`, the motion
+//!   tasks), in one of three frames ([`RelativeFrame`]):
+//!   * **base-aligned translation, hand rotation** (default): the hand's displacement
+//!     `H_now.t - H_ref.t` in the tracker frame is turned into the robot's base frame by
+//!     the fixed operator-to-robot rotation `A`, and the hand's rotation since the press
+//!     taken about its own axes is applied about the palm's:
+//!     `t = R_ref.t + s A (H_now.t - H_ref.t)`, `R = R_ref.R (H_ref.R^T H_now.R)`.
+//!     Moving the hand to the operator's right moves the robot to the robot's right;
+//!     turning the hand about its fingers turns the palm about its fingers (pouring),
+//!     however the hand and the robot's forearm lie;
+//!   * **base-aligned**: the same translation, the rotation `H_now.R H_ref.R^T` also in
+//!     the base's axes: `R = (A H_now.R H_ref.R^T A^T) R_ref.R` (the default until the
+//!     pouring task: an operator's fingers-up turn became a yaw of the PR2's
+//!     horizontal forearm that its joints could not make in place, 1.1 cm off);
+//!   * **wrist** (the earliest behaviour): `R_ref * scale(H_ref^-1 * H_now)`, the motion
 //!     taken in the operator's hand frame and applied in the robot's palm frame, so the
 //!     direction depends on how hand and palm were turned at the press.
 //!
@@ -76,10 +82,17 @@ pub const THESIS_PERIOD_S: f64 = 1.0 / 30.0;
 pub enum RelativeFrame {
     /// Displacements and rotations in the tracker frame, turned into the robot's base
     /// frame by the fixed operator-to-robot rotation (see the [module docs](self)).
-    #[default]
     BaseAligned,
     /// The motion in the hand's own frame applied in the palm's frame.
     Wrist,
+    /// Translations as [`RelativeFrame::BaseAligned`] (along the base's axes);
+    /// rotations as [`RelativeFrame::Wrist`] (about the hand's own axes, applied about
+    /// the palm's): turning the hand about its fingers turns the palm about its fingers,
+    /// however the robot's forearm lies (the pouring turn is a forearm roll on both).
+    /// Assumes the hand frame (Fig. 3.6) and the palm frame name the same axes (z along
+    /// the fingers), as the retargeting's common frame does. The default.
+    #[default]
+    BaseAlignedHandRotation,
 }
 
 /// How the arm follows the operator.
@@ -222,7 +235,7 @@ impl Default for ArmControllerConfig {
             rotation_scale: 0.25,
             d1: 1.0,
             feedback_gain_per_s: 10.0,
-            frame: RelativeFrame::BaseAligned,
+            frame: RelativeFrame::BaseAlignedHandRotation,
             operator_to_robot_rpy_deg: [0.0; 3],
             marker_to_hand: TransformConfig::default(),
             pose_deadline_s: 0.1,
@@ -585,6 +598,15 @@ impl ArmController {
                 Isometry3::from_parts(
                     Translation3::from(robot_ref.translation.vector + a * (dp * motion_scale)),
                     a * dr * a.inverse() * robot_ref.rotation,
+                )
+            }
+            RelativeFrame::BaseAlignedHandRotation => {
+                let a = self.operator_to_robot;
+                let dp = human_now.translation.vector - human_ref.translation.vector;
+                let dr = human_ref.rotation.inverse() * human_now.rotation;
+                Isometry3::from_parts(
+                    Translation3::from(robot_ref.translation.vector + a * (dp * motion_scale)),
+                    robot_ref.rotation * dr,
                 )
             }
             RelativeFrame::Wrist => {

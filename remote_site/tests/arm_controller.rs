@@ -549,3 +549,51 @@ fn the_absolute_frame_default_is_the_models_torso() {
     assert!(torso.rotation.angle_to(&ours.rotation) < 1e-9);
     assert_eq!(cfg.frame_id, robots::pr2::TORSO);
 }
+
+/// The default frame: the hand's translation along the base's axes, its rotation about
+/// its own axes applied about the palm's. A hand whose fingers point up turns 40 deg
+/// about its fingers while moving 5 cm along the base's y: the palm moves 5 cm along y
+/// and turns 40 deg about its own fingers (z), its fingers keeping their direction.
+#[test]
+fn default_frame_turns_the_palm_about_its_own_axes_and_moves_along_the_base() {
+    assert_eq!(
+        ArmControllerConfig::default().frame,
+        RelativeFrame::BaseAlignedHandRotation
+    );
+    let mut r = Rig::new();
+    r.wrist = Isometry3::from_parts(
+        Translation3::new(-0.85, -0.1, 0.5),
+        UnitQuaternion::from_euler_angles(0.0, 0.0, -90f64.to_radians()),
+    );
+    r.clutch = true;
+    r.step();
+    let robot_ref = r.palm();
+    let human_ref = r.wrist;
+    for k in 1..=60 {
+        let f = f64::from(k) / 60.0;
+        r.wrist = Isometry3::from_parts(
+            Translation3::from(human_ref.translation.vector + Vector3::new(0.0, 0.05 * f, 0.0)),
+            human_ref.rotation
+                * UnitQuaternion::from_euler_angles(0.0, 0.0, 40f64.to_radians() * f),
+        );
+        r.step();
+    }
+    for _ in 0..90 {
+        r.step();
+    }
+    let got = r.palm();
+    let moved = got.translation.vector - robot_ref.translation.vector;
+    assert!(
+        (moved - Vector3::new(0.0, 0.05, 0.0)).norm() < 0.002,
+        "palm moved {moved:?}"
+    );
+    let fingers_before = robot_ref.rotation * Vector3::z();
+    let fingers_after = got.rotation * Vector3::z();
+    assert!(fingers_before.angle(&fingers_after).to_degrees() < 0.5);
+    let turned = robot_ref.rotation.inverse() * got.rotation;
+    let expected = UnitQuaternion::from_euler_angles(0.0, 0.0, 40f64.to_radians());
+    assert!(
+        (turned * expected.inverse()).angle().to_degrees() < 0.5,
+        "turned {turned:?}"
+    );
+}

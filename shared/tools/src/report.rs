@@ -29,7 +29,7 @@ use teleop_hardware::wire;
 use teleop_interfaces::joints::PR2_ARM_JOINTS;
 use teleop_interfaces::topics;
 use teleop_kinematics::FixedChain;
-use teleop_local_site::camera_arm::{CameraArmConfig, camera_goal};
+use teleop_local_site::camera_arm::CameraArmConfig;
 use teleop_msgs::{FingertipPressures, JointState, NodeStatus, OperatorInput, Pose, PoseStamped};
 
 /// One latency stage.
@@ -398,12 +398,7 @@ impl Recorder {
             self.stages[STAGE_CAMERA].add(r.receive_time_s(), t);
             if let (Some(cam), Some(hand)) = (pose_of(&r.msg.pose), self.truth_at(t)) {
                 let c = &self.camera_cfg;
-                let goal = camera_goal(
-                    &hand,
-                    c.standoff_m,
-                    c.side,
-                    &Vector3::from(c.look_at_in_hand_m),
-                );
+                let goal = c.goal_for(&hand);
                 let e = (cam.translation.vector - goal.translation.vector).norm();
                 let dir = (cam.rotation * Vector3::z())
                     .angle(&(goal.rotation * Vector3::z()))
@@ -413,12 +408,7 @@ impl Recorder {
                 let (truth, c) = (&self.truth, &self.camera_cfg);
                 self.camera_delay.add(|d| {
                     truth_at(truth, t - d).map(|hand| {
-                        let goal = camera_goal(
-                            &hand,
-                            c.standoff_m,
-                            c.side,
-                            &Vector3::from(c.look_at_in_hand_m),
-                        );
+                        let goal = c.goal_for(&hand);
                         (cam.translation.vector - goal.translation.vector).norm()
                     })
                 });
