@@ -590,24 +590,20 @@ impl ArmController {
         robot_ref: &Isometry3<f64>,
         motion_scale: f64,
     ) -> Isometry3<f64> {
+        let a = self.operator_to_robot;
+        // The base-aligned frames' translation: the hand's displacement in the base's axes.
+        let base_aligned = || {
+            let dp = human_now.translation.vector - human_ref.translation.vector;
+            Translation3::from(robot_ref.translation.vector + a * (dp * motion_scale))
+        };
         match self.cfg.frame {
             RelativeFrame::BaseAligned => {
-                let a = self.operator_to_robot;
-                let dp = human_now.translation.vector - human_ref.translation.vector;
                 let dr = human_now.rotation * human_ref.rotation.inverse();
-                Isometry3::from_parts(
-                    Translation3::from(robot_ref.translation.vector + a * (dp * motion_scale)),
-                    a * dr * a.inverse() * robot_ref.rotation,
-                )
+                Isometry3::from_parts(base_aligned(), a * dr * a.inverse() * robot_ref.rotation)
             }
             RelativeFrame::BaseAlignedHandRotation => {
-                let a = self.operator_to_robot;
-                let dp = human_now.translation.vector - human_ref.translation.vector;
                 let dr = human_ref.rotation.inverse() * human_now.rotation;
-                Isometry3::from_parts(
-                    Translation3::from(robot_ref.translation.vector + a * (dp * motion_scale)),
-                    robot_ref.rotation * dr,
-                )
+                Isometry3::from_parts(base_aligned(), robot_ref.rotation * dr)
             }
             RelativeFrame::Wrist => {
                 let mut delta = human_ref.inverse() * human_now;
