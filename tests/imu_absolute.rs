@@ -15,7 +15,7 @@ use teleop_hardware::wire;
 use teleop_ik::{Goal, IkSettings, Solver};
 use teleop_interfaces::{joints, topics};
 use teleop_local_site::tracking::bvh::{BvhStreamConfig, Skeleton};
-use teleop_local_site::tracking::imu_arm::{HumanArm, ImuArmConfig, ImuArmMapping};
+use teleop_local_site::tracking::imu_arm::{ImuArmConfig, ImuArmMapping};
 use teleop_local_site::wrist_tracker::{self, WristTrackerConfig};
 use teleop_remote_site::arm_controller::{AbsoluteConfig, ArmControllerConfig, ArmMode};
 use teleop_remote_site::arm_node::{self, ArmNodeConfig};
@@ -54,16 +54,16 @@ fn skeleton_path() -> std::path::PathBuf {
 /// The palm target in the torso frame for script time `t`, through the library's
 /// skeleton and mapping (each tested on its own in `local_site/tests`).
 fn target(skeleton: &Skeleton, mapping: &ImuArmMapping, t: f64) -> Isometry3<f64> {
-    let world = skeleton.world_poses(&frame(t), 0.01).unwrap();
-    let spine = world[skeleton.joint("Spine3").unwrap()];
-    let at = |n: &str| spine.inverse() * world[skeleton.joint(n).unwrap()];
-    mapping
-        .palm_target(&HumanArm {
-            shoulder: at("RightArm").translation.vector.into(),
-            elbow: at("RightForeArm").translation.vector.into(),
-            hand: at("RightHand"),
-        })
-        .unwrap()
+    let j = |n: &str| skeleton.joint(n).unwrap();
+    let arm = skeleton
+        .arm_in(
+            &frame(t),
+            j("Spine3"),
+            [j("RightArm"), j("RightForeArm"), j("RightHand")],
+            0.01,
+        )
+        .unwrap();
+    mapping.palm_target(&arm).unwrap()
 }
 
 /// Serves the broadcast at 50 Hz until `STREAM_UNTIL_S`, then closes.

@@ -32,14 +32,14 @@ fn frame(hips: [f64; 6], joints: [[f64; 3]; 5]) -> Vec<f64> {
 }
 
 fn human_arm(s: &Skeleton, values: &[f64]) -> HumanArm {
-    let world = s.world_poses(values, 0.01).unwrap();
-    let spine = world[s.joint("Spine3").unwrap()];
-    let at = |name: &str| spine.inverse() * world[s.joint(name).unwrap()];
-    HumanArm {
-        shoulder: at("RightArm").translation.vector.into(),
-        elbow: at("RightForeArm").translation.vector.into(),
-        hand: at("RightHand"),
-    }
+    let j = |name: &str| s.joint(name).unwrap();
+    s.arm_in(
+        values,
+        j("Spine3"),
+        [j("RightArm"), j("RightForeArm"), j("RightHand")],
+        0.01,
+    )
+    .unwrap()
 }
 
 fn palm_in_torso(q: [f64; 7]) -> nalgebra::Isometry3<f64> {

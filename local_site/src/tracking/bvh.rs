@@ -53,6 +53,8 @@ pub enum BvhError {
     BadPrefix,
     #[error("BVH frame gives a zero-length arm (shoulder, elbow and hand coincide)")]
     DegenerateArm,
+    #[error("BVH source's arm registration: {0}")]
+    Arm(String),
 }
 
 /// One channel of a joint.
@@ -388,6 +390,35 @@ impl Skeleton {
         Ok(out)
     }
 
+    /// The arm joints `shoulder`, `elbow` and `hand` in the frame of joint `reference`
+    /// for one frame of values (what the chapter-6 registration maps).
+    ///
+    /// # Errors
+    /// As [`Skeleton::world_poses`]; [`BvhError::UnknownJoint`] for an index out of range.
+    pub fn arm_in(
+        &self,
+        frame: &[f64],
+        reference: usize,
+        [shoulder, elbow, hand]: [usize; 3],
+        to_metres: f64,
+    ) -> Result<HumanArm, BvhError> {
+        let world = self.world_poses(frame, to_metres)?;
+        let at = |j: usize| -> Result<Isometry3<f64>, BvhError> {
+            match (world.get(reference), world.get(j)) {
+                (Some(r), Some(t)) => Ok(r.inverse() * t),
+                _ => Err(BvhError::UnknownJoint(format!(
+                    "joint index {reference} or {j} of {}",
+                    self.joints.len()
+                ))),
+            }
+        };
+        Ok(HumanArm {
+            shoulder: at(shoulder)?.translation.vector.into(),
+            elbow: at(elbow)?.translation.vector.into(),
+            hand: at(hand)?,
+        })
+    }
+
     /// Pose of joint `target` in the frame of joint `reference` for one frame of values.
     ///
     /// # Errors
@@ -563,10 +594,7 @@ impl BvhStreamTracker {
             Some(a) => Some(ArmJoints {
                 shoulder: skeleton.joint(&a.shoulder_joint)?,
                 elbow: skeleton.joint(&a.elbow_joint)?,
-                mapping: ImuArmMapping::new(a).map_err(|e| BvhError::Io {
-                    path: config.skeleton.clone(),
-                    reason: e.to_string(),
-                })?,
+                mapping: ImuArmMapping::new(a).map_err(|e| BvhError::Arm(e.to_string()))?,
             }),
             None => None,
         };
@@ -734,13 +762,12 @@ impl Reader {
                 .skeleton
                 .relative_pose(values, self.reference, self.hand, self.to_metres);
         };
-        let world = self.skeleton.world_poses(values, self.to_metres)?;
-        let in_spine = |j: usize| world[self.reference].inverse() * world[j];
-        let human = HumanArm {
-            shoulder: in_spine(arm.shoulder).translation.vector.into(),
-            elbow: in_spine(arm.elbow).translation.vector.into(),
-            hand: in_spine(self.hand),
-        };
+        let human = self.skeleton.arm_in(
+            values,
+            self.reference,
+            [arm.shoulder, arm.elbow, self.hand],
+            self.to_metres,
+        )?;
         arm.mapping
             .palm_target(&human)
             .ok_or(BvhError::DegenerateArm)
