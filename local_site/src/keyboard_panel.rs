@@ -496,9 +496,11 @@ impl KeyboardPanel {
     }
 }
 
-/// A terminal switched to non-canonical, no-echo mode; [`TerminalMode::restore`] puts
-/// the original settings back (once).
-struct TerminalMode {
+/// A terminal switched to non-canonical, no-echo mode; [`TerminalMode::restore`] (or
+/// dropping it) puts the original settings back (once). Also used by `teleop launch
+/// --keyboard`, which reads the keys in its own terminal and forwards them to the wrist
+/// tracker.
+pub struct TerminalMode {
     fd: Box<dyn AsFd + Send + Sync>,
     original: Mutex<Option<Termios>>,
 }
@@ -506,7 +508,10 @@ struct TerminalMode {
 impl TerminalMode {
     /// Switches off line buffering (each key is delivered as it is pressed) and echo;
     /// signals stay on (Ctrl-C stops the node).
-    fn enter(fd: Box<dyn AsFd + Send + Sync>) -> Result<Arc<Self>, KeyboardError> {
+    ///
+    /// # Errors
+    /// [`KeyboardError::Terminal`] when `fd` is no terminal or its mode cannot be set.
+    pub fn enter(fd: Box<dyn AsFd + Send + Sync>) -> Result<Arc<Self>, KeyboardError> {
         let original =
             termios::tcgetattr(fd.as_fd()).map_err(|source| KeyboardError::Terminal {
                 what: "read",
@@ -530,11 +535,12 @@ impl TerminalMode {
     }
 
     /// True until the original settings were put back (or tried to).
-    fn active(&self) -> bool {
+    pub fn active(&self) -> bool {
         self.original.lock().is_ok_and(|o| o.is_some())
     }
 
-    fn restore(&self) {
+    /// Puts the original settings back (the first call only).
+    pub fn restore(&self) {
         let original = match self.original.lock() {
             Ok(mut o) => o.take(),
             Err(poisoned) => poisoned.into_inner().take(),
@@ -545,6 +551,14 @@ impl TerminalMode {
                 Err(e) => tracing::warn!("keyboard: cannot restore the terminal's settings: {e}"),
             }
         }
+    }
+}
+
+impl fmt::Debug for TerminalMode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("TerminalMode")
+            .field("active", &self.active())
+            .finish_non_exhaustive()
     }
 }
 
@@ -599,8 +613,9 @@ impl KeyboardReader {
             Self::spawn(stdin, "stdin", panel, clock, Some(mode))
         } else {
             tracing::warn!(
-                "keyboard: stdin is not a terminal: its bytes are read as keys (no \
-                 auto-repeat: enable holds only while spaces keep arriving)"
+                "keyboard: stdin is not a terminal: its bytes are read as keys, enable \
+                 holds only while spaces keep arriving (`teleop launch --keyboard` \
+                 forwards its terminal's keys, auto-repeat included)"
             );
             Self::from_reader(stdin, "stdin", cfg, clock)
         }

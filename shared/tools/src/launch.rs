@@ -17,7 +17,9 @@ use nix::unistd::Pid;
 use teleop_bus::{Bus, BusConfig, Subscriber};
 use teleop_interfaces::nodes::{NODES, NodeSpec};
 use teleop_interfaces::topics;
+use teleop_local_site::keyboard_panel::{KeyboardPanelConfig, TerminalMode};
 use teleop_local_site::local_sim::LocalSimConfig;
+use teleop_local_site::wrist_tracker::{PanelSource, WristTrackerConfig};
 use teleop_msgs::{Lifecycle, NodeStatus};
 use teleop_node::ZenohArgs;
 use teleop_sim::operator_site::TaskKind;
@@ -58,6 +60,85 @@ pub struct LaunchArgs {
     /// Write no report files (the report is still printed).
     #[arg(long)]
     pub no_report_files: bool,
+    /// The pedals from this terminal's keyboard instead of the simulated operator's
+    /// feet: hold space = enable, c = clutch, s = camera-arm stop, 1-4 = motion scale,
+    /// x / Esc = release (the wrist tracker's keyboard panel; the launcher reads the
+    /// keys and forwards them to it).
+    #[arg(long)]
+    pub keyboard: bool,
+}
+
+/// This run's directory for the configs the launcher writes.
+fn run_dir() -> anyhow::Result<PathBuf> {
+    let dir = std::env::temp_dir().join(format!("teleop-launch-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    Ok(dir)
+}
+
+/// Writes `cfg` as `<name>.toml` into this run's directory.
+fn write_run_config<T: serde::Serialize>(name: &str, cfg: &T) -> anyhow::Result<PathBuf> {
+    let path = run_dir()?.join(format!("{name}.toml"));
+    std::fs::write(&path, teleop_node::config::to_toml(cfg)?)
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(path)
+}
+
+/// The wrist tracker's config for `--keyboard`: the shipped file or the defaults, its
+/// panel the keyboard.
+fn keyboard_wrist_tracker_config(args: &LaunchArgs) -> anyhow::Result<PathBuf> {
+    let name = teleop_interfaces::nodes::WRIST_TRACKER;
+    let mut cfg: WristTrackerConfig = match &args.config_dir {
+        Some(dir) => teleop_node::config::load_checked(&dir.join(format!("{name}.toml")))?,
+        None => WristTrackerConfig::default(),
+    };
+    let keyboard = match cfg.panel {
+        PanelSource::Keyboard(k) => k,
+        _ => KeyboardPanelConfig::default(),
+    };
+    cfg.panel = PanelSource::Keyboard(keyboard);
+    write_run_config(name, &cfg)
+}
+
+/// Forwards this process's stdin to the wrist tracker's keyboard panel, byte by byte
+/// as the keys arrive, on a thread of its own (a blocking read cannot be cancelled; the
+/// thread ends with the process or when the tracker's end of the pipe closes). A
+/// terminal is switched to key-by-key, no-echo mode (Ctrl-C still reaches the
+/// launcher) until the returned guard is dropped.
+fn forward_keys(
+    mut to_tracker: std::io::PipeWriter,
+) -> anyhow::Result<Option<std::sync::Arc<TerminalMode>>> {
+    use std::io::{IsTerminal, Read, Write};
+    let mode = if std::io::stdin().is_terminal() {
+        Some(TerminalMode::enter(Box::new(std::io::stdin()))?)
+    } else {
+        None
+    };
+    std::thread::Builder::new()
+        .name("launch-keys".into())
+        .spawn(move || {
+            let mut stdin = std::io::stdin();
+            let mut buf = [0u8; 64];
+            loop {
+                match stdin.read(&mut buf) {
+                    Ok(0) => {
+                        tracing::warn!("keyboard: input ended; the panel is lost (robots stop)");
+                        return;
+                    }
+                    Ok(n) => {
+                        if to_tracker.write_all(&buf[..n]).is_err() {
+                            return;
+                        }
+                    }
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                    Err(e) => {
+                        tracing::warn!("keyboard: reading the keys failed: {e}");
+                        return;
+                    }
+                }
+            }
+        })
+        .context("starting the key forwarding thread")?;
+    Ok(mode)
 }
 
 /// The simulator's config for this run: the shipped file or the defaults, with the
@@ -80,11 +161,7 @@ fn local_sim_config(args: &LaunchArgs) -> anyhow::Result<Option<(PathBuf, String
             )
         })?;
     cfg.operator_site.repeat = false;
-    let dir = std::env::temp_dir().join(format!("teleop-launch-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-    let path = dir.join("local_sim.toml");
-    std::fs::write(&path, teleop_node::config::to_toml(&cfg)?)
-        .with_context(|| format!("writing {}", path.display()))?;
+    let path = write_run_config("local_sim", &cfg)?;
     Ok(Some((path, task.clone())))
 }
 
@@ -194,12 +271,26 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
                 .to_owned(),
         },
     };
+    let keyboard_config = if args.keyboard {
+        Some(keyboard_wrist_tracker_config(&args)?)
+    } else {
+        None
+    };
     let mut recorder = Recorder::new(&bus, &task_name).await?;
     let mut children: Vec<(&'static NodeSpec, Child)> = Vec::new();
+    let mut _terminal = None;
     for spec in NODES {
         let mut cmd = Command::new(node_binary(spec.name)?);
+        let mut stdin = Stdio::null();
         if let (Some((path, _)), "local_sim") = (&sim_config, spec.name) {
             cmd.arg("--config").arg(path);
+        } else if let (Some(path), teleop_interfaces::nodes::WRIST_TRACKER) =
+            (&keyboard_config, spec.name)
+        {
+            cmd.arg("--config").arg(path);
+            let (keys_in, keys_out) = std::io::pipe().context("a pipe for the keys")?;
+            _terminal = forward_keys(keys_out)?;
+            stdin = Stdio::from(keys_in);
         } else if let Some(dir) = &args.config_dir {
             cmd.arg("--config")
                 .arg(dir.join(format!("{}.toml", spec.name)));
@@ -209,7 +300,7 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         // whole foreground group) reaches only the launcher, which stops the nodes in
         // the node table's order (controllers first, the robots' owner last) instead of
         // all at once.
-        cmd.stdin(Stdio::null()).kill_on_drop(true).process_group(0);
+        cmd.stdin(stdin).kill_on_drop(true).process_group(0);
         let child = cmd
             .spawn()
             .with_context(|| format!("starting {}", spec.name))?;

@@ -257,3 +257,73 @@ fn ctrl_c_to_the_terminal_group_still_stops_every_node_gracefully() {
     );
     assert_every_node_stopped_gracefully(&stdout);
 }
+
+/// `--keyboard`: the pedals come from the launcher's keyboard, forwarded to the wrist
+/// tracker's keyboard panel, and no longer from the simulated operator's feet. Without
+/// keys the arm never engages, though the simulated operator presses its clutch pedal
+/// 2 s in; with space held (its auto-repeat, as a terminal sends it) and `c` pressed,
+/// it engages once; letting go of space releases it.
+#[test]
+fn keyboard_pedals_from_the_launchers_terminal_drive_the_clutch() {
+    use std::io::Write;
+    let _one = one_system();
+    let run = |domain: &str, keys: bool| {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_teleop"))
+            .args([
+                "--domain-id",
+                domain,
+                "launch",
+                "--keyboard",
+                "--duration-s",
+                "11",
+                "--quiet",
+                "--no-report-files",
+            ])
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .expect("start teleop launch --keyboard");
+        let mut stdin = child.stdin.take().expect("stdin");
+        if keys {
+            // The system is up after a few seconds; then space held for 3 s (repeats
+            // every 35 ms), `c` 0.5 s into it, then nothing: enable drops 0.7 s
+            // after the last space and takes the clutch with it.
+            std::thread::sleep(std::time::Duration::from_secs(4));
+            for k in 0..86 {
+                let key: &[u8] = if k == 14 { b"c" } else { b" " };
+                stdin.write_all(key).expect("key");
+                stdin.flush().expect("flush");
+                std::thread::sleep(std::time::Duration::from_millis(35));
+            }
+        } else {
+            std::thread::sleep(std::time::Duration::from_secs(6));
+        }
+        let out = child.wait_with_output().expect("wait for teleop launch");
+        drop(stdin);
+        let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        println!("{stdout}");
+        assert!(
+            out.status.success(),
+            "launch failed ({}):\n{stdout}\n{stderr}",
+            out.status
+        );
+        assert_every_node_stopped_gracefully(&stdout);
+        (stdout, stderr)
+    };
+    let (idle, _) = run("96", false);
+    assert!(!idle.contains("arm.engagements="), "{idle}");
+    assert!(!idle.contains("hand.engagements="), "{idle}");
+    let (keyed, stderr) = run("97", true);
+    assert!(keyed.contains("arm.engagements=1 "), "{keyed}");
+    assert!(keyed.contains("hand.engagements=1"), "{keyed}");
+    assert!(stderr.contains("keyboard: clutch engaged (c)"), "{stderr}");
+    assert!(stderr.contains("keyboard: enable dropped"), "{stderr}");
+    // Released with enable: the arm is held at the stop, not active.
+    let arm = keyed
+        .lines()
+        .find(|l| l.starts_with("pr2_arm_controller "))
+        .expect("arm line");
+    assert!(!arm.contains("Active"), "{arm}");
+}
