@@ -78,6 +78,18 @@ pub struct BusConfig {
     /// Per-topic deadline overrides in milliseconds, by topic name.
     pub deadlines_ms: std::collections::BTreeMap<String, u64>,
     pub zenoh: ZenohSettings,
+    /// Simulated time for this run (`--time-scale`, `--time-origin-ns` on the command
+    /// line; never from a file): `None`, the default, is the system clock.
+    #[serde(skip)]
+    pub time: Option<TimeScale>,
+}
+
+/// A run's simulated time: `scale` x the wall clock, agreeing with it at `origin_ns`
+/// (see [`crate::clock::ScaledClock`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TimeScale {
+    pub origin_ns: i64,
+    pub scale: f64,
 }
 
 impl Default for BusConfig {
@@ -87,6 +99,7 @@ impl Default for BusConfig {
             clock_tolerance_ms: 20,
             deadlines_ms: Default::default(),
             zenoh: ZenohSettings::default(),
+            time: None,
         }
     }
 }

@@ -25,8 +25,8 @@ pub mod stats;
 pub mod testing;
 
 pub use attachment::Attachment;
-pub use clock::{Clock, ManualClock, SystemClock};
-pub use config::{BusConfig, Mode, ZenohSettings};
+pub use clock::{Clock, ManualClock, ScaledClock, SystemClock};
+pub use config::{BusConfig, Mode, TimeScale, ZenohSettings};
 pub use directory::{PublisherDirectory, PublisherInfo};
 pub use session::{
     Bus, BusError, NodeEvent, NodeWatch, Publisher, Received, SeenPublisher, SourcePolicy,

@@ -56,6 +56,8 @@ pub enum BusError {
     EmptySourceNode { topic: &'static str },
     #[error("invalid node name `{0}`: use letters, digits and `_`")]
     NodeName(String),
+    #[error("bus clock: {0}")]
+    Clock(String),
 }
 
 fn zerr(what: impl Into<String>) -> impl FnOnce(zenoh::Error) -> BusError {
@@ -90,14 +92,20 @@ impl std::fmt::Debug for Bus {
 }
 
 impl Bus {
-    /// Opens a Zenoh session for node `node_name` on the system clock and announces the
-    /// node's liveliness.
+    /// Opens a Zenoh session for node `node_name` on the system clock (or the run's
+    /// simulated time, [`BusConfig::time`]) and announces the node's liveliness.
     ///
     /// # Errors
     /// [`BusError`] if the name is invalid, the configuration is refused or the session
     /// cannot open.
     pub async fn open(node_name: &str, config: &BusConfig) -> Result<Self, BusError> {
-        Self::open_with_clock(node_name, config, clock::system()).await
+        let clock: Arc<dyn Clock> = match config.time {
+            None => clock::system(),
+            Some(t) => {
+                Arc::new(clock::ScaledClock::new(t.origin_ns, t.scale).map_err(BusError::Clock)?)
+            }
+        };
+        Self::open_with_clock(node_name, config, clock).await
     }
 
     /// [`Bus::open`] with the node's clock: source timestamps of published samples and

@@ -47,6 +47,22 @@ pub struct ZenohArgs {
     /// ROS 2 domain id (overrides the config file).
     #[arg(long)]
     pub domain_id: Option<u32>,
+    /// Run on simulated time that passes this many times as fast as the wall clock
+    /// (0.05-20; below 1 is slow motion). Every process of one system must be given the
+    /// same scale and origin (`teleop launch --time-scale` does that).
+    #[arg(long, value_parser = parse_time_scale)]
+    pub time_scale: Option<f64>,
+    /// Where simulated time agrees with the wall clock, ns since the epoch (default:
+    /// when the process starts; a launcher passes its own to every node).
+    #[arg(long, requires = "time_scale")]
+    pub time_origin_ns: Option<i64>,
+}
+
+fn parse_time_scale(s: &str) -> Result<f64, String> {
+    let scale: f64 = s
+        .parse()
+        .map_err(|e| format!("not a number: {s:?} ({e})"))?;
+    teleop_bus::ScaledClock::new(0, scale).map(|_| scale)
 }
 
 impl ZenohArgs {
@@ -69,6 +85,22 @@ impl ZenohArgs {
         }
         if let Some(d) = self.domain_id {
             cfg.domain_id = d;
+        }
+        if let Some(scale) = self.time_scale {
+            cfg.time = Some(teleop_bus::TimeScale {
+                origin_ns: self
+                    .time_origin_ns
+                    .unwrap_or_else(teleop_msgs::unix_nanos_now),
+                scale,
+            });
+        }
+    }
+
+    /// Fixes the simulated time's origin at now, if a scale is given without one (a
+    /// launcher does this before passing [`to_args`](Self::to_args) to its nodes).
+    pub fn pin_time_origin(&mut self) {
+        if self.time_scale.is_some() && self.time_origin_ns.is_none() {
+            self.time_origin_ns = Some(teleop_msgs::unix_nanos_now());
         }
     }
 
@@ -99,6 +131,12 @@ impl ZenohArgs {
         }
         if let Some(d) = self.domain_id {
             out.extend(["--domain-id".into(), d.to_string()]);
+        }
+        if let Some(scale) = self.time_scale {
+            out.extend(["--time-scale".into(), scale.to_string()]);
+        }
+        if let Some(origin) = self.time_origin_ns {
+            out.extend(["--time-origin-ns".into(), origin.to_string()]);
         }
         out
     }
@@ -187,6 +225,8 @@ mod tests {
             connect: vec!["tcp/127.0.0.1:7447".into()],
             no_multicast_scouting: true,
             domain_id: Some(7),
+            time_scale: Some(0.5),
+            time_origin_ns: Some(1_700_000_000_000_000_000),
             ..Default::default()
         };
         let mut cfg = BusConfig::default();
@@ -194,6 +234,13 @@ mod tests {
         assert_eq!(cfg.zenoh.mode, Mode::Client);
         assert_eq!(cfg.domain_id, 7);
         assert!(!cfg.zenoh.multicast_scouting);
+        assert_eq!(
+            cfg.time,
+            Some(teleop_bus::TimeScale {
+                origin_ns: 1_700_000_000_000_000_000,
+                scale: 0.5
+            })
+        );
         cfg.zenoh.to_zenoh().expect("valid");
         assert_eq!(
             args.to_args(),
@@ -204,9 +251,42 @@ mod tests {
                 "tcp/127.0.0.1:7447",
                 "--no-multicast-scouting",
                 "--domain-id",
-                "7"
+                "7",
+                "--time-scale",
+                "0.5",
+                "--time-origin-ns",
+                "1700000000000000000"
             ]
         );
+    }
+
+    #[test]
+    fn time_scale_out_of_range_is_refused_and_origin_pinned_once() {
+        for bad in ["0", "-2", "100", "nan", "fast"] {
+            assert!(parse_time_scale(bad).is_err(), "{bad}");
+        }
+        assert_eq!(parse_time_scale("0.5"), Ok(0.5));
+        let mut a = ZenohArgs {
+            time_scale: Some(2.0),
+            ..Default::default()
+        };
+        a.pin_time_origin();
+        let origin = a.time_origin_ns.expect("pinned");
+        a.pin_time_origin();
+        assert_eq!(a.time_origin_ns, Some(origin));
+        let mut cfg = BusConfig::default();
+        a.apply(&mut cfg);
+        assert_eq!(
+            cfg.time,
+            Some(teleop_bus::TimeScale {
+                origin_ns: origin,
+                scale: 2.0
+            })
+        );
+        // No scale, no simulated time.
+        let mut cfg = BusConfig::default();
+        ZenohArgs::default().apply(&mut cfg);
+        assert_eq!(cfg.time, None);
     }
 
     #[test]

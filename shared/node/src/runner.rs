@@ -81,7 +81,8 @@ where
 {
     let node_name = bus.node_name().to_owned();
     let status = StatusReporter::new(&bus).await?;
-    let mut tick = tokio::time::interval(node.period());
+    // On a run's simulated time (`--time-scale`) the period is in simulated seconds.
+    let mut tick = tokio::time::interval(node.period().div_f64(bus.clock().rate()));
     tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
     let mut status_tick = tokio::time::interval(STATUS_PERIOD);
     status_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);

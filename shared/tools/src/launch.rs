@@ -40,7 +40,8 @@ pub struct LaunchArgs {
     /// Directory with `<node>.toml` files (default: built-in defaults).
     #[arg(long)]
     pub config_dir: Option<PathBuf>,
-    /// Stop everything after this many seconds (default: until Ctrl-C / SIGTERM).
+    /// Stop everything after this many seconds of (simulated, with `--time-scale`)
+    /// time (default: until Ctrl-C / SIGTERM).
     #[arg(long)]
     pub duration_s: Option<f64>,
     /// Do not print the monitor table.
@@ -248,6 +249,11 @@ impl StatusLog {
 }
 
 pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
+    // One simulated time for every process of the run (`--time-scale`).
+    let mut zenoh = zenoh.clone();
+    zenoh.pin_time_origin();
+    let zenoh = &zenoh;
+    let time_scale = zenoh.time_scale.unwrap_or(1.0);
     let mut cfg = BusConfig::default();
     zenoh.apply(&mut cfg);
     let bus = Bus::open(&format!("teleop_launch_{}", std::process::id()), &cfg).await?;
@@ -307,7 +313,10 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         tracing::info!(node = spec.name, pid = child.id(), "started");
         children.push((spec, child));
     }
-    let duration = args.duration_s.map(|s| Duration::from_secs_f64(s.max(0.0)));
+    // `--duration-s` is simulated time.
+    let duration = args
+        .duration_s
+        .map(|s| Duration::from_secs_f64(s.max(0.0) / time_scale));
     let monitor = async {
         if args.quiet {
             teleop_node::stop_signal(duration).await;

@@ -73,8 +73,12 @@ impl ErrorSummary {
 /// The report.
 #[derive(Debug, Clone, Serialize, PartialEq, Default)]
 pub struct RunReport {
+    /// Simulated seconds (wall seconds x `time_scale`).
     pub duration_s: f64,
     pub task: String,
+    /// Simulated seconds per wall second (`--time-scale`; 1 = real time). Every time
+    /// and latency in the report is in simulated time.
+    pub time_scale: f64,
     pub latency: Vec<StageLatency>,
     /// Hand inference's own stage timings (its status counters), µs.
     pub hand_inference_stages_us: BTreeMap<String, u64>,
@@ -350,6 +354,7 @@ impl Recorder {
             ],
             report: RunReport {
                 task: task.to_owned(),
+                time_scale: bus.clock().rate(),
                 ..RunReport::default()
             },
             pr2_abs: [0.0; 3],
@@ -602,14 +607,25 @@ impl Recorder {
 
 impl RunReport {
     /// The report as text.
+    /// `""` in real time, else `" of simulated time at 0.5x real time"` and the like.
+    fn time_scale_note(&self) -> String {
+        if (self.time_scale - 1.0).abs() < 1e-9 || self.time_scale == 0.0 {
+            String::new()
+        } else {
+            format!(" of simulated time at {}x real time", self.time_scale)
+        }
+    }
+
     #[must_use]
     pub fn text(&self) -> String {
         use std::fmt::Write;
         let mut s = String::new();
         let _ = writeln!(
             s,
-            "== teleop launch: end-of-run report ({} task, {:.1} s)",
-            self.task, self.duration_s
+            "== teleop launch: end-of-run report ({} task, {:.1} s{})",
+            self.task,
+            self.duration_s,
+            self.time_scale_note()
         );
         let _ = writeln!(
             s,
@@ -738,8 +754,10 @@ impl RunReport {
         let root = root
             .titled(
                 &format!(
-                    "teleop launch: {} task, {:.0} s",
-                    self.task, self.duration_s
+                    "teleop launch: {} task, {:.0} s{}",
+                    self.task,
+                    self.duration_s,
+                    self.time_scale_note()
                 ),
                 ("sans-serif", 28),
             )

@@ -129,9 +129,46 @@ fn tasks_run_once_and_meet_the_goals_in_the_report() {
         ("pick_and_place", "94", 13.0..40.0),
         ("pouring", "95", 18.0..45.0),
     ] {
-        let dir =
-            std::env::temp_dir().join(format!("teleop-report-test-{}-{task}", std::process::id()));
-        let mut args = [
+        task_meets_the_goals(task, domain, duration, &[]);
+    }
+}
+
+/// `--time-scale 2`: every process runs on one simulated time passing twice as fast as
+/// the wall clock. The task takes as many simulated seconds as in real time (so in
+/// about half the wall time) and still meets every goal of the report, which says its
+/// time scale.
+#[test]
+fn a_task_on_simulated_time_twice_as_fast_meets_the_goals() {
+    let _one = one_system();
+    let started = std::time::Instant::now();
+    let json = task_meets_the_goals("fader", "98", 15.0..40.0, &["--time-scale", "2"]);
+    let wall_s = started.elapsed().as_secs_f64();
+    assert_eq!(json["time_scale"], 2.0, "{json}");
+    let sim_s = json["duration_s"].as_f64().expect("duration_s");
+    // The run (start-up and shut-down included) took less wall time than the task's
+    // simulated time: the simulated clock ran faster than the wall clock.
+    assert!(
+        wall_s < sim_s,
+        "{sim_s} s of simulated time took {wall_s} s"
+    );
+}
+
+/// Runs `task` once (on `domain`, with `extra` before `launch`), asserts every node
+/// stopped gracefully and the report's figures meet the local-site issue's goals;
+/// returns the report's JSON.
+fn task_meets_the_goals(
+    task: &str,
+    domain: &str,
+    duration: std::ops::Range<f64>,
+    extra: &[&str],
+) -> serde_json::Value {
+    let dir = std::env::temp_dir().join(format!(
+        "teleop-report-test-{}-{task}-{domain}",
+        std::process::id()
+    ));
+    let mut args: Vec<&std::ffi::OsStr> = extra.iter().map(std::ffi::OsStr::new).collect();
+    args.extend(
+        [
             "--domain-id",
             domain,
             "launch",
@@ -143,84 +180,84 @@ fn tasks_run_once_and_meet_the_goals_in_the_report() {
             "60",
             "--report-dir",
         ]
-        .map(std::ffi::OsStr::new)
-        .to_vec();
-        args.push(dir.as_os_str());
-        let stdout = launch_ok(&args);
-        assert_every_node_stopped_gracefully(&stdout);
-        let json: serde_json::Value = serde_json::from_str(
-            &std::fs::read_to_string(dir.join("report.json")).expect("report.json written"),
-        )
-        .expect("report.json parses");
-        let png = std::fs::read(dir.join("report.png")).expect("report.png written");
-        assert!(png.starts_with(b"\x89PNG"), "not a PNG");
-        let f = |key: &str| {
-            json[key]
-                .as_f64()
-                .unwrap_or_else(|| panic!("{key} in {json}"))
-        };
-        let nested = |key: &str, field: &str| {
-            json[key][field]
-                .as_f64()
-                .unwrap_or_else(|| panic!("{key}.{field} in {json}"))
-        };
-        assert_eq!(json["task"], task);
-        // The task ran to its end, and not to the 60 s bound.
-        let ran = f("duration_s");
-        assert!(duration.contains(&ran), "{task} ran {ran} s");
-        // The camera kept the hand in view and near its goal.
-        let frames = f("depth_frames");
-        assert!(frames > 300.0, "{task}: {frames} depth frames");
-        assert!(f("fraction_hand_fully_in_view") >= 0.995, "{task}: {json}");
+        .map(std::ffi::OsStr::new),
+    );
+    args.push(dir.as_os_str());
+    let stdout = launch_ok(&args);
+    assert_every_node_stopped_gracefully(&stdout);
+    let json: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.join("report.json")).expect("report.json written"),
+    )
+    .expect("report.json parses");
+    let png = std::fs::read(dir.join("report.png")).expect("report.png written");
+    assert!(png.starts_with(b"\x89PNG"), "not a PNG");
+    let f = |key: &str| {
+        json[key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{key} in {json}"))
+    };
+    let nested = |key: &str, field: &str| {
+        json[key][field]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{key}.{field} in {json}"))
+    };
+    assert_eq!(json["task"], task);
+    // The task ran to its end, and not to the 60 s bound.
+    let ran = f("duration_s");
+    assert!(duration.contains(&ran), "{task} ran {ran} s");
+    // The camera kept the hand in view and near its goal.
+    let frames = f("depth_frames");
+    assert!(frames > 300.0, "{task}: {frames} depth frames");
+    assert!(f("fraction_hand_fully_in_view") >= 0.995, "{task}: {json}");
+    assert!(
+        nested("camera_position_error_m", "samples") > 300.0,
+        "{task}: {json}"
+    );
+    assert!(
+        nested("camera_position_error_m", "mean") <= 0.01,
+        "{task}: {json}"
+    );
+    assert!(
+        nested("camera_position_error_m", "max") <= 0.03,
+        "{task}: {json}"
+    );
+    // Hand inference: targets for (nearly) every frame, paired with the truth.
+    assert!(f("finger_target_frames") > 0.8 * frames, "{task}: {json}");
+    assert!(
+        nested("hand_joint_mean_error_rad", "mean") <= 1.2 * OFFLINE_TEST_MEAN_ERROR_RAD,
+        "{task}: {json}"
+    );
+    // The PR2 followed the operator while clutched.
+    assert_eq!(json["clutch_engagements"], 1, "{task}: {json}");
+    assert!(
+        nested("pr2_position_error_m", "samples") > 500.0,
+        "{task}: {json}"
+    );
+    assert!(
+        nested("pr2_position_error_m", "mean") <= 0.005,
+        "{task}: {json}"
+    );
+    // The robot site measured the finger targets' age on arrival itself.
+    let remote = &json["hand_controller_stages_us"];
+    assert!(
+        remote["latency.targets.capture_to_received_us.p50"]
+            .as_u64()
+            .is_some_and(|v| v > 0),
+        "{task}: {remote}"
+    );
+    // Every latency stage was measured.
+    for stage in json["latency"].as_array().expect("latency") {
         assert!(
-            nested("camera_position_error_m", "samples") > 300.0,
-            "{task}: {json}"
+            stage["samples"].as_u64().unwrap_or(0) > 100,
+            "{task}: {stage}"
         );
         assert!(
-            nested("camera_position_error_m", "mean") <= 0.01,
-            "{task}: {json}"
+            stage["p50_ms"].as_f64().is_some_and(|v| v > 0.0),
+            "{task}: {stage}"
         );
-        assert!(
-            nested("camera_position_error_m", "max") <= 0.03,
-            "{task}: {json}"
-        );
-        // Hand inference: targets for (nearly) every frame, paired with the truth.
-        assert!(f("finger_target_frames") > 0.8 * frames, "{task}: {json}");
-        assert!(
-            nested("hand_joint_mean_error_rad", "mean") <= 1.2 * OFFLINE_TEST_MEAN_ERROR_RAD,
-            "{task}: {json}"
-        );
-        // The PR2 followed the operator while clutched.
-        assert_eq!(json["clutch_engagements"], 1, "{task}: {json}");
-        assert!(
-            nested("pr2_position_error_m", "samples") > 500.0,
-            "{task}: {json}"
-        );
-        assert!(
-            nested("pr2_position_error_m", "mean") <= 0.005,
-            "{task}: {json}"
-        );
-        // The robot site measured the finger targets' age on arrival itself.
-        let remote = &json["hand_controller_stages_us"];
-        assert!(
-            remote["latency.targets.capture_to_received_us.p50"]
-                .as_u64()
-                .is_some_and(|v| v > 0),
-            "{task}: {remote}"
-        );
-        // Every latency stage was measured.
-        for stage in json["latency"].as_array().expect("latency") {
-            assert!(
-                stage["samples"].as_u64().unwrap_or(0) > 100,
-                "{task}: {stage}"
-            );
-            assert!(
-                stage["p50_ms"].as_f64().is_some_and(|v| v > 0.0),
-                "{task}: {stage}"
-            );
-        }
-        let _ = std::fs::remove_dir_all(&dir);
     }
+    let _ = std::fs::remove_dir_all(&dir);
+    json
 }
 
 /// A terminal's Ctrl-C sends SIGINT to the whole foreground process group: the launcher
