@@ -10,6 +10,7 @@ use teleop_local_site::local_sim::LocalSimConfig;
 use teleop_local_site::wrist_tracker::WristTrackerConfig;
 use teleop_node::NodeConfig;
 use teleop_node::config::{load_toml, parse_toml};
+use teleop_node::router::RouterConfig;
 use teleop_remote_site::arm_node::ArmNodeConfig;
 use teleop_remote_site::feedback_node::FeedbackConfig;
 use teleop_remote_site::hand_node::HandNodeConfig;
@@ -56,6 +57,7 @@ fn checker(stem: &str) -> Option<Checks> {
             check::<HandInferenceConfig>,
             equals_default::<HandInferenceConfig>,
         )),
+        "router" => Some((check::<RouterConfig>, equals_default::<RouterConfig>)),
         _ => None,
     }
 }
@@ -134,8 +136,12 @@ fn unknown_and_misspelled_fields_are_named() {
     assert!(err.contains("pose_rate"), "{err}");
     let err = parse_toml::<WristTrackerConfig>("[operator]\nsede = 3\n").unwrap_err();
     assert!(err.contains("sede"), "{err}");
-    let err = parse_toml::<WristTrackerConfig>("[bus.zenoh]\nmode = \"router\"\n").unwrap_err();
-    assert!(err.contains("router"), "{err}");
+    let err = parse_toml::<WristTrackerConfig>("[bus.zenoh]\nmode = \"bridge\"\n").unwrap_err();
+    assert!(err.contains("bridge"), "{err}");
+    // `router` is a mode, but only for `teleop router`.
+    let mut cfg: WristTrackerConfig = parse_toml("[bus.zenoh]\nmode = \"router\"\n").unwrap();
+    let err = teleop_node::config::validate_all(&mut cfg).unwrap_err();
+    assert!(err.contains("teleop router"), "{err}");
     let cfg: WristTrackerConfig = parse_toml("pose_rate_hz = -1.0\n").unwrap();
     assert!(cfg.validate().unwrap_err().contains("pose_rate_hz"));
 }

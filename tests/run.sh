@@ -25,3 +25,5 @@ echo "== cargo build (node binaries, for the launch test)"
 cargo build --release --workspace --bins --locked
 echo "== cargo test"
 cargo test --release --workspace --locked
+echo "== compose test (both sites as containers: deploy/compose/test.sh; TELEOP_SKIP_DOCKER=1 skips it where there is no Docker engine)"
+SKIP_CARGO_BUILD=1 bash deploy/compose/test.sh

@@ -14,6 +14,9 @@ pub enum Mode {
     Peer,
     /// Talks only through a router (WAN setups, rmw_zenoh routers).
     Client,
+    /// Is a router: routes between its clients and to other routers (a site's
+    /// `teleop router`; no node runs in this mode).
+    Router,
 }
 
 impl Mode {
@@ -22,6 +25,7 @@ impl Mode {
         match self {
             Mode::Peer => "peer",
             Mode::Client => "client",
+            Mode::Router => "router",
         }
     }
 }
@@ -48,7 +52,9 @@ pub struct ZenohSettings {
     /// node neither sends nor accepts them (Zenoh access control on the node's own
     /// session), so hardware traffic does not leave the robot's site. Default `["lo"]`:
     /// it stays on this machine. A site whose drivers and controllers sit on several
-    /// machines names its site LAN interface here; `["*"]` lifts the restriction.
+    /// machines names its site LAN interface here, by name (`eth1`) or by an IPv4
+    /// subnet one of the interface's addresses is in (`172.30.2.0/24`: robust where
+    /// interface names are not, as in containers); `["*"]` lifts the restriction.
     pub hardware_interfaces: Vec<String>,
 }
 
@@ -110,6 +116,8 @@ impl Default for BusConfig {
 pub enum ConfigError {
     #[error("zenoh configuration rejected `{key}`: {message}")]
     Zenoh { key: String, message: String },
+    #[error("hardware_interfaces: {0}")]
+    HardwareInterfaces(String),
 }
 
 impl ZenohSettings {
@@ -150,7 +158,8 @@ impl ZenohSettings {
         // (docs/benchmarks.md, bus section). Memory cost: up to 1 MiB per link.
         set("transport/link/tx/queue/size/data_low", "16".into())?;
         set("transport/link/rx/buffer_size", "1048576".into())?;
-        if let Some(acl) = hardware_acl(&self.hardware_interfaces, &host_interfaces()) {
+        let allowed = resolve_interfaces(&self.hardware_interfaces, &host_addresses())?;
+        if let Some(acl) = hardware_acl(&allowed, &host_interfaces()) {
             set("access_control", acl.to_string())?;
         }
         Ok(cfg)
@@ -171,6 +180,74 @@ pub fn host_interfaces() -> Vec<String> {
         .unwrap_or_default();
     out.sort();
     out
+}
+
+/// This host's interfaces with their IPv4 addresses.
+pub fn host_addresses() -> Vec<(String, std::net::Ipv4Addr)> {
+    let Ok(addrs) = nix::ifaddrs::getifaddrs() else {
+        return Vec::new();
+    };
+    addrs
+        .filter_map(|a| {
+            let ip = a.address?.as_sockaddr_in()?.ip();
+            Some((a.interface_name, ip))
+        })
+        .collect()
+}
+
+/// `allowed` with each subnet entry (`a.b.c.d/n`) replaced by the names of the
+/// interfaces in `host` with an address in it; names and `*` kept as they are.
+///
+/// # Errors
+/// [`ConfigError::HardwareInterfaces`] for a malformed subnet, or one no interface of
+/// this host is in (a site LAN that is not there: refusing beats guessing).
+pub fn resolve_interfaces(
+    allowed: &[String],
+    host: &[(String, std::net::Ipv4Addr)],
+) -> Result<Vec<String>, ConfigError> {
+    let mut out = Vec::new();
+    for entry in allowed {
+        let Some((net, mask)) = parse_subnet(entry)? else {
+            out.push(entry.clone());
+            continue;
+        };
+        let mut found = false;
+        for (name, ip) in host {
+            if u32::from(*ip) & mask == u32::from(net) & mask {
+                found = true;
+                if !out.contains(name) {
+                    out.push(name.clone());
+                }
+            }
+        }
+        if !found {
+            return Err(ConfigError::HardwareInterfaces(format!(
+                "`{entry}`: no interface of this host has an address in it"
+            )));
+        }
+    }
+    Ok(out)
+}
+
+/// `Some((network, mask))` for a subnet entry `a.b.c.d/n`, `None` for an interface
+/// name.
+///
+/// # Errors
+/// [`ConfigError::HardwareInterfaces`] for a malformed subnet.
+pub fn parse_subnet(entry: &str) -> Result<Option<(std::net::Ipv4Addr, u32)>, ConfigError> {
+    let Some((net, len)) = entry.split_once('/') else {
+        return Ok(None);
+    };
+    let bad = |why: &str| ConfigError::HardwareInterfaces(format!("`{entry}`: {why}"));
+    let net: std::net::Ipv4Addr = net
+        .parse()
+        .map_err(|_| bad("not an IPv4 subnet a.b.c.d/n"))?;
+    let len: u32 = len
+        .parse()
+        .ok()
+        .filter(|l| *l <= 32)
+        .ok_or_else(|| bad("prefix length must be 0-32"))?;
+    Ok(Some((net, u32::MAX.checked_shl(32 - len).unwrap_or(0))))
 }
 
 /// The Zenoh access-control block that keeps hardware topics off every interface of
@@ -233,6 +310,43 @@ mod tests {
         // The default builds a valid Zenoh config with the block.
         BusConfig::default().zenoh.to_zenoh().expect("valid");
         assert!(host_interfaces().contains(&"lo".to_owned()));
+    }
+
+    #[test]
+    fn hardware_interfaces_by_subnet_resolve_to_interface_names() {
+        let ip = |s: &str| s.parse::<std::net::Ipv4Addr>().expect("ip");
+        let host = vec![
+            ("lo".to_owned(), ip("127.0.0.1")),
+            ("eth0".to_owned(), ip("172.30.2.5")),
+            ("eth1".to_owned(), ip("172.30.9.2")),
+        ];
+        let names = |v: &[&str]| v.iter().map(|s| (*s).to_owned()).collect::<Vec<_>>();
+        assert_eq!(
+            resolve_interfaces(&names(&["lo", "172.30.2.0/24"]), &host).expect("resolves"),
+            names(&["lo", "eth0"])
+        );
+        assert_eq!(
+            resolve_interfaces(&names(&["172.30.0.0/16"]), &host).expect("resolves"),
+            names(&["eth0", "eth1"])
+        );
+        assert_eq!(
+            resolve_interfaces(&names(&["*"]), &host).expect("kept"),
+            names(&["*"])
+        );
+        for (bad, why) in [
+            ("10.0.0.0/8", "no interface"),
+            ("172.30.2.0/33", "prefix length"),
+            ("eth0/24", "not an IPv4 subnet"),
+        ] {
+            let e = resolve_interfaces(&names(&[bad]), &host).expect_err(bad);
+            assert!(e.to_string().contains(why), "{e}");
+            assert!(e.to_string().contains(bad), "{e}");
+        }
+        // This host's loopback by subnet.
+        assert_eq!(
+            resolve_interfaces(&names(&["127.0.0.0/8"]), &host_addresses()).expect("lo"),
+            names(&["lo"])
+        );
     }
 
     #[test]

@@ -47,6 +47,10 @@ pub struct ZenohArgs {
     /// ROS 2 domain id (overrides the config file).
     #[arg(long)]
     pub domain_id: Option<u32>,
+    /// Interface (name, or IPv4 subnet a.b.c.d/n) on which hardware topics may travel
+    /// (repeatable; replaces the config's `hardware_interfaces`; `*` for all).
+    #[arg(long)]
+    pub hardware_interface: Vec<String>,
     /// Run on simulated time that passes this many times as fast as the wall clock
     /// (0.05-20; below 1 is slow motion). Every process of one system must be given the
     /// same scale and origin (`teleop launch --time-scale` does that).
@@ -85,6 +89,9 @@ impl ZenohArgs {
         }
         if let Some(d) = self.domain_id {
             cfg.domain_id = d;
+        }
+        if !self.hardware_interface.is_empty() {
+            cfg.zenoh.hardware_interfaces = self.hardware_interface.clone();
         }
         if let Some(scale) = self.time_scale {
             cfg.time = Some(teleop_bus::TimeScale {
@@ -131,6 +138,9 @@ impl ZenohArgs {
         }
         if let Some(d) = self.domain_id {
             out.extend(["--domain-id".into(), d.to_string()]);
+        }
+        for i in &self.hardware_interface {
+            out.extend(["--hardware-interface".into(), i.clone()]);
         }
         if let Some(scale) = self.time_scale {
             out.extend(["--time-scale".into(), scale.to_string()]);
@@ -189,7 +199,7 @@ impl NodeArgs {
             None => C::default(),
         };
         self.zenoh.apply(cfg.bus_mut());
-        cfg.validate().map_err(ConfigError::Invalid)?;
+        config::validate_all(&mut cfg).map_err(ConfigError::Invalid)?;
         Ok(Some(cfg))
     }
 
@@ -225,6 +235,7 @@ mod tests {
             connect: vec!["tcp/127.0.0.1:7447".into()],
             no_multicast_scouting: true,
             domain_id: Some(7),
+            hardware_interface: vec!["10.0.0.0/8".into()],
             time_scale: Some(0.5),
             time_origin_ns: Some(1_700_000_000_000_000_000),
             ..Default::default()
@@ -234,6 +245,7 @@ mod tests {
         assert_eq!(cfg.zenoh.mode, Mode::Client);
         assert_eq!(cfg.domain_id, 7);
         assert!(!cfg.zenoh.multicast_scouting);
+        assert_eq!(cfg.zenoh.hardware_interfaces, ["10.0.0.0/8"]);
         assert_eq!(
             cfg.time,
             Some(teleop_bus::TimeScale {
@@ -252,6 +264,8 @@ mod tests {
                 "--no-multicast-scouting",
                 "--domain-id",
                 "7",
+                "--hardware-interface",
+                "10.0.0.0/8",
                 "--time-scale",
                 "0.5",
                 "--time-origin-ns",

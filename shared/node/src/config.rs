@@ -18,6 +18,23 @@ pub trait NodeConfig: Serialize + DeserializeOwned + Default {
     fn validate(&self) -> Result<(), String> {
         Ok(())
     }
+    /// True for the router's config (`teleop router`), the one config whose
+    /// `bus.zenoh.mode` may be `router`.
+    const IS_ROUTER: bool = false;
+}
+
+/// [`NodeConfig::validate`], and a node's Zenoh mode must be `peer` or `client`.
+///
+/// # Errors
+/// A text naming the offending field.
+pub fn validate_all<C: NodeConfig>(cfg: &mut C) -> Result<(), String> {
+    if !C::IS_ROUTER && cfg.bus_mut().zenoh.mode == teleop_bus::Mode::Router {
+        return Err(
+            "bus.zenoh.mode = \"router\" is for `teleop router`, not a node: use \"peer\" or \"client\""
+                .into(),
+        );
+    }
+    cfg.validate()
 }
 
 /// Errors of configuration handling.
@@ -75,9 +92,8 @@ pub fn to_toml<T: Serialize>(value: &T) -> Result<String, ConfigError> {
 /// # Errors
 /// As [`load_toml`], or [`ConfigError::Invalid`] from [`NodeConfig::validate`].
 pub fn load_checked<C: NodeConfig>(path: &Path) -> Result<C, ConfigError> {
-    let cfg: C = load_toml(path)?;
-    cfg.validate()
-        .map_err(|e| ConfigError::Invalid(format!("{}: {e}", path.display())))?;
+    let mut cfg: C = load_toml(path)?;
+    validate_all(&mut cfg).map_err(|e| ConfigError::Invalid(format!("{}: {e}", path.display())))?;
     Ok(cfg)
 }
 

@@ -10,6 +10,7 @@ pub mod config;
 pub mod latency;
 #[cfg(feature = "plot")]
 pub mod plot;
+pub mod router;
 pub mod runner;
 pub mod source;
 pub mod status;

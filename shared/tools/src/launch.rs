@@ -27,13 +27,7 @@ use tokio::process::{Child, Command};
 
 use crate::report::Recorder;
 
-/// A counter of a status, by name.
-fn counter(s: &NodeStatus, name: &str) -> Option<u64> {
-    s.counter_names
-        .iter()
-        .position(|n| n == name)
-        .and_then(|i| s.counter_values.get(i).copied())
-}
+use crate::record::counter;
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct LaunchArgs {
@@ -369,15 +363,7 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
     println!();
     print!("{}", report.text());
     if !args.no_report_files {
-        std::fs::create_dir_all(&args.report_dir)
-            .with_context(|| format!("creating {}", args.report_dir.display()))?;
-        let json = args.report_dir.join("report.json");
-        let png = args.report_dir.join("report.png");
-        report.write_json(&json)?;
-        match report.write_png(&png) {
-            Ok(()) => println!("report written to {} and {}", json.display(), png.display()),
-            Err(e) => println!("report written to {}; no plot: {e}", json.display()),
-        }
+        report.write_files(&args.report_dir)?;
     }
     drop(status);
     bus.close().await?;

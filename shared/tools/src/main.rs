@@ -3,7 +3,9 @@
 
 mod inspect;
 mod launch;
+mod record;
 mod report;
+mod router;
 
 use clap::{Parser, Subcommand};
 use teleop_node::ZenohArgs;
@@ -42,6 +44,12 @@ enum Command {
     },
     /// Start every node of the system on this machine (simulated hardware).
     Launch(launch::LaunchArgs),
+    /// Run a site's Zenoh router (the site's nodes connect to it as clients; it
+    /// connects to the other site's router across the WAN).
+    Router(router::RouterArgs),
+    /// Record the end-of-run report of a running system (started by someone else:
+    /// docker compose, several machines).
+    Report(record::ReportArgs),
 }
 
 #[derive(Debug, Subcommand)]
@@ -110,5 +118,7 @@ async fn main() -> anyhow::Result<()> {
         Command::Node(NodeCommand::List { wait_s }) => inspect::node_list(&bus_cfg, wait_s).await,
         Command::Monitor { duration_s } => inspect::monitor(&bus_cfg, None, duration_s).await,
         Command::Launch(args) => launch::launch(args, &cli.zenoh).await,
+        Command::Router(args) => router::run(args, &cli.zenoh).await,
+        Command::Report(args) => record::run(args, &cli.zenoh).await,
     }
 }

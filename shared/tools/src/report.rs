@@ -607,6 +607,24 @@ impl Recorder {
 
 impl RunReport {
     /// The report as text.
+    /// Writes `report.json` and `report.png` into `dir` (created if missing) and says
+    /// so; a plot that cannot be drawn is reported, not an error.
+    ///
+    /// # Errors
+    /// Creating the directory or writing the JSON.
+    pub fn write_files(&self, dir: &std::path::Path) -> anyhow::Result<()> {
+        use anyhow::Context;
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let json = dir.join("report.json");
+        let png = dir.join("report.png");
+        self.write_json(&json)?;
+        match self.write_png(&png) {
+            Ok(()) => println!("report written to {} and {}", json.display(), png.display()),
+            Err(e) => println!("report written to {}; no plot: {e}", json.display()),
+        }
+        Ok(())
+    }
+
     /// `""` in real time, else `" of simulated time at 0.5x real time"` and the like.
     fn time_scale_note(&self) -> String {
         if (self.time_scale - 1.0).abs() < 1e-9 || self.time_scale == 0.0 {

@@ -1,0 +1,115 @@
+#!/usr/bin/env bash
+# The compose system end to end: builds the images (offline, deploy/docker/
+# build-images.sh), brings both sites up as containers, records the end-of-run report
+# of the simulator's scripted task (pick_and_place) at the operator's site, checks its
+# figures against the local-site goals and that every container was still running,
+# and tears everything down, also when a step fails; then checks that `down` left no
+# container, network or volume behind.
+#
+#   deploy/compose/test.sh [--no-build] [--skip-without-docker]
+#
+# Without a Docker engine and Compose it says so and fails, unless
+# --skip-without-docker (or TELEOP_SKIP_DOCKER=1) is given.
+set -euo pipefail
+
+HERE=$(cd "$(dirname "$0")" && pwd)
+ROOT=$(cd "$HERE/../.." && pwd)
+BUILD=1
+SKIP=${TELEOP_SKIP_DOCKER:-0}
+for a in "$@"; do
+  case $a in
+    --no-build) BUILD=0 ;;
+    --skip-without-docker) SKIP=1 ;;
+    *) echo "compose test: unknown option $a"; exit 2 ;;
+  esac
+done
+
+if docker compose version >/dev/null 2>&1; then
+  COMPOSE=(docker compose)
+elif command -v docker-compose >/dev/null 2>&1; then
+  COMPOSE=(docker-compose)
+else
+  COMPOSE=()
+fi
+if ! docker info >/dev/null 2>&1 || [[ ${#COMPOSE[@]} == 0 ]]; then
+  echo "compose test: no Docker engine with Compose on this machine (docker info / docker compose / docker-compose)"
+  if [[ $SKIP == 1 ]]; then
+    echo "compose test: SKIPPED (--skip-without-docker)"
+    exit 0
+  fi
+  exit 1
+fi
+
+export COMPOSE_PROJECT_NAME=teleoptest$$
+export TELEOP_REPORT_DIR
+TELEOP_REPORT_DIR=$(mktemp -d /tmp/teleop-compose-report.XXXXXX)
+compose() { "${COMPOSE[@]}" -f "$HERE/docker-compose.yml" "$@"; }
+teardown() {
+  compose --profile report down -v --remove-orphans --timeout 15 >/dev/null 2>&1 || true
+}
+trap teardown EXIT
+echo "compose test: project $COMPOSE_PROJECT_NAME, report in $TELEOP_REPORT_DIR"
+
+if [[ $BUILD == 1 ]]; then
+  bash "$ROOT/deploy/docker/build-images.sh"
+fi
+
+NODES=(local-router remote-router robot-sim pc2-arm pc2-hand pc2-feedback
+  pc1-wrist-tracker pc1-camera-arm pc1-hand-inference)
+compose up -d "${NODES[@]}"
+# The recorder first, so it sees the task from its start; then the simulator.
+compose run --rm report >"$TELEOP_REPORT_DIR/report.log" 2>&1 &
+REPORT=$!
+for _ in $(seq 300); do
+  grep -q "recording" "$TELEOP_REPORT_DIR/report.log" 2>/dev/null && break
+  sleep 0.1
+done
+compose up -d pc3-local-sim
+status=0
+wait $REPORT || status=$?
+cat "$TELEOP_REPORT_DIR/report.log"
+if [[ $status != 0 ]]; then
+  echo "compose test: the report failed ($status); the last lines of every container:"
+  compose logs --no-color --tail 20
+  exit 1
+fi
+# Every node container still running at the end of the task.
+mapfile -t running < <(compose ps --services --filter status=running 2>/dev/null || true)
+for s in "${NODES[@]}" pc3-local-sim; do
+  if ! printf '%s\n' "${running[@]}" | grep -qx "$s"; then
+    echo "compose test: $s is not running at the end of the task"
+    compose logs --no-color --tail 30 "$s"
+    exit 1
+  fi
+done
+python3 "$HERE/check_report.py" "$TELEOP_REPORT_DIR/report.json"
+
+# Hardware topics stay on their site: a listener on the robot's LAN hears the PR2's
+# encoders, one on the operator's LAN (through its router, across the wan) does not,
+# though it hears the PR2's joint states that the feedback publisher sends across.
+IMAGE=${TELEOP_IMAGE:-teleop:local}
+samples() { # network router-address topic
+  docker run --rm --network "${COMPOSE_PROJECT_NAME}_$1" "$IMAGE" teleop --mode client \
+    --connect "tcp/$2:7447" --no-multicast-scouting --hardware-interface '*' \
+    topic echo "$3" --format json -n 20 --duration-s 4 2>/dev/null |
+    grep -c '"position"' || true
+}
+hw_robot=$(samples remote_lan 172.30.2.2 /teleop/hw/pr2_arm/state)
+hw_operator=$(samples local_lan 172.30.1.2 /teleop/hw/pr2_arm/state)
+feedback_operator=$(samples local_lan 172.30.1.2 /teleop/pr2/joint_states)
+echo "compose test: PR2 encoder samples heard on remote_lan: $hw_robot, on local_lan: $hw_operator; PR2 feedback samples on local_lan: $feedback_operator"
+if [[ $hw_robot -lt 1 || $hw_operator -ne 0 || $feedback_operator -lt 1 ]]; then
+  echo "compose test: hardware topics must be heard on the robot's LAN only, feedback at the operator's site"
+  exit 1
+fi
+
+teardown
+trap - EXIT
+left=$(docker ps -aq --filter "label=com.docker.compose.project=$COMPOSE_PROJECT_NAME"
+  docker network ls -q --filter "label=com.docker.compose.project=$COMPOSE_PROJECT_NAME"
+  docker volume ls -q --filter "label=com.docker.compose.project=$COMPOSE_PROJECT_NAME")
+if [[ -n $left ]]; then
+  echo "compose test: down left these behind: $left"
+  exit 1
+fi
+echo "compose test: passed (down left no container, network or volume behind)"

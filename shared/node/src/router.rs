@@ -1,0 +1,79 @@
+//! A site's Zenoh router, `teleop router`: the one process per site that the site's
+//! nodes connect to as clients and that talks to the other site's router across the
+//! WAN. It is a plain Zenoh router built from the same zenoh crate as the nodes (one
+//! version on both ends of every link, no second toolchain to build `zenohd`), with the
+//! same typed, validated settings as a node's bus: its `hardware_interfaces` keep the
+//! robot's hardware topics on the site LAN, by interface name or by subnet.
+
+use serde::{Deserialize, Serialize};
+use teleop_bus::{BusConfig, Mode};
+
+use crate::NodeConfig;
+
+/// The router's configuration file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RouterConfig {
+    /// Only `bus.zenoh` matters to a router (mode `router`, what it listens on, which
+    /// routers it connects to, where hardware topics may go); the rest is ignored.
+    pub bus: BusConfig,
+}
+
+impl Default for RouterConfig {
+    fn default() -> Self {
+        let mut bus = BusConfig::default();
+        bus.zenoh.mode = Mode::Router;
+        bus.zenoh.listen = vec!["tcp/0.0.0.0:7447".into()];
+        bus.zenoh.multicast_scouting = false;
+        Self { bus }
+    }
+}
+
+impl NodeConfig for RouterConfig {
+    const IS_ROUTER: bool = true;
+
+    fn bus_mut(&mut self) -> &mut BusConfig {
+        &mut self.bus
+    }
+
+    fn validate(&self) -> Result<(), String> {
+        let z = &self.bus.zenoh;
+        if z.mode != Mode::Router {
+            return Err(format!(
+                "bus.zenoh.mode must be \"router\" for a router, got \"{}\"",
+                z.mode.as_str()
+            ));
+        }
+        if z.listen.is_empty() {
+            return Err("bus.zenoh.listen must name at least one endpoint".into());
+        }
+        // Subnets are resolved to this host's interfaces when the router starts (a
+        // site's config is checked on machines that are not on that site).
+        for entry in &z.hardware_interfaces {
+            teleop_bus::config::parse_subnet(entry).map_err(|e| e.to_string())?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn router_config_checks_mode_and_listen() {
+        RouterConfig::default().validate().expect("default valid");
+        let mut c = RouterConfig::default();
+        c.bus.zenoh.mode = Mode::Peer;
+        assert!(c.validate().unwrap_err().contains("mode"));
+        let mut c = RouterConfig::default();
+        c.bus.zenoh.listen.clear();
+        assert!(c.validate().unwrap_err().contains("listen"));
+        let mut c = RouterConfig::default();
+        c.bus.zenoh.hardware_interfaces = vec!["10.0.0.0/40".into()];
+        assert!(c.validate().unwrap_err().contains("hardware_interfaces"));
+        let e = crate::config::parse_toml::<RouterConfig>("[bus.zenoh]\nmodee = \"router\"\n")
+            .unwrap_err();
+        assert!(e.contains("modee"), "{e}");
+    }
+}

@@ -1,0 +1,108 @@
+//! `teleop report`: the end-of-run report of a system someone else started (the
+//! docker-compose sites, machines of a lab): subscribes to what the report needs, and
+//! when the operator-site simulator's task is done (`--until-task-done`), after
+//! `--duration-s`, or on SIGINT/SIGTERM, prints the report and writes it as JSON and
+//! PNG. The nodes keep running; their latest status stands in for the final one.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::bail;
+use teleop_bus::{Bus, BusConfig};
+use teleop_interfaces::topics;
+use teleop_msgs::NodeStatus;
+use teleop_node::ZenohArgs;
+
+/// The operator-site simulator's node name (its status says when the task is done).
+const LOCAL_SIM: &str = "local_sim";
+
+use crate::report::Recorder;
+
+#[derive(Debug, Clone, clap::Args)]
+pub struct ReportArgs {
+    /// The task's name, for the report's title.
+    #[arg(long, default_value = "unnamed")]
+    pub task: String,
+    /// Stop 1 s after the operator-site simulator reports its task done.
+    #[arg(long)]
+    pub until_task_done: bool,
+    /// Stop after this many seconds (a bound with `--until-task-done`).
+    #[arg(long)]
+    pub duration_s: Option<f64>,
+    /// Fail unless the simulator's first status arrives within this many seconds.
+    #[arg(long, default_value_t = 60.0)]
+    pub wait_for_system_s: f64,
+    /// Where the report is written (`report.json`, `report.png`).
+    #[arg(long, default_value = "teleop-report")]
+    pub report_dir: PathBuf,
+}
+
+/// A counter of a status, by name.
+pub fn counter(s: &NodeStatus, name: &str) -> Option<u64> {
+    s.counter_names
+        .iter()
+        .position(|n| n == name)
+        .and_then(|i| s.counter_values.get(i).copied())
+}
+
+pub async fn run(args: ReportArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
+    let mut cfg = BusConfig::default();
+    zenoh.apply(&mut cfg);
+    let bus = Bus::open(&format!("teleop_report_{}", std::process::id()), &cfg).await?;
+    let status = bus.subscriber(&topics::NODE_STATUS).await?;
+    let mut recorder = Recorder::new(&bus, &args.task).await?;
+    tracing::info!(task = %args.task, "recording");
+    let mut latest: BTreeMap<String, NodeStatus> = BTreeMap::new();
+    let started = tokio::time::Instant::now();
+    let bound = args
+        .duration_s
+        .map(|s| started + Duration::from_secs_f64(s.max(0.0)));
+    let wait = Duration::from_secs_f64(args.wait_for_system_s.clamp(0.0, 3600.0));
+    let stop = teleop_node::stop_signal(None);
+    tokio::pin!(stop);
+    let mut done_since: Option<tokio::time::Instant> = None;
+    let mut seen_sim = false;
+    loop {
+        while let Some(r) = status.try_recv() {
+            if r.msg.node_name == LOCAL_SIM {
+                if !seen_sim {
+                    tracing::info!("operator-site simulator seen");
+                }
+                seen_sim = true;
+                if args.until_task_done
+                    && counter(&r.msg, "sim.task_repetitions").is_some_and(|n| n >= 1)
+                {
+                    done_since.get_or_insert_with(tokio::time::Instant::now);
+                }
+            }
+            latest.insert(r.msg.node_name.clone(), r.msg);
+        }
+        recorder.poll();
+        if !seen_sim && started.elapsed() > wait {
+            bail!(
+                "no status from {} within {} s: is the system running on this domain and reachable?",
+                LOCAL_SIM,
+                args.wait_for_system_s
+            );
+        }
+        if done_since.is_some_and(|t| t.elapsed() > Duration::from_secs(1))
+            || bound.is_some_and(|b| tokio::time::Instant::now() >= b)
+        {
+            break;
+        }
+        tokio::select! {
+            () = &mut stop => break,
+            () = tokio::time::sleep(Duration::from_millis(5)) => {}
+        }
+    }
+    let report = recorder.finish(bus.now_s(), &latest);
+    print!("{}", report.text());
+    report.write_files(&args.report_dir)?;
+    drop(status);
+    bus.close().await?;
+    if args.until_task_done && done_since.is_none() {
+        bail!("the simulator's task did not finish before the report stopped");
+    }
+    Ok(())
+}

@@ -1,0 +1,136 @@
+//! The multi-host deployment's files agree with the node table and with each other:
+//! every node of the table runs in one container of `deploy/compose/docker-compose.yml`
+//! with its machine's config, on its site's LAN, a client of its site's router; only
+//! the two routers join the WAN; the image scripts ship every binary. (The compose
+//! system itself runs in `deploy/compose/test.sh`, which CI runs.)
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use teleop_bus::Mode;
+use teleop_interfaces::nodes::{NODES, Site};
+use teleop_node::NodeConfig;
+use teleop_system_tests::repo_root;
+
+fn compose() -> serde_yaml::Value {
+    let path = repo_root().join("deploy/compose/docker-compose.yml");
+    serde_yaml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap()
+}
+
+fn strings(v: &serde_yaml::Value) -> Vec<String> {
+    v.as_sequence()
+        .map(|s| {
+            s.iter()
+                .filter_map(|x| x.as_str().map(str::to_owned))
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// A service's networks, as a list or a map.
+fn networks(service: &serde_yaml::Value) -> Vec<String> {
+    match &service["networks"] {
+        serde_yaml::Value::Sequence(_) => strings(&service["networks"]),
+        serde_yaml::Value::Mapping(m) => m
+            .keys()
+            .filter_map(|k| k.as_str().map(str::to_owned))
+            .collect(),
+        _ => Vec::new(),
+    }
+}
+
+/// The bus section of a per-machine node config (the config test checks the rest).
+fn bus_of(path: &std::path::Path) -> teleop_bus::BusConfig {
+    #[derive(serde::Deserialize)]
+    struct OnlyBus {
+        #[serde(default)]
+        bus: teleop_bus::BusConfig,
+    }
+    let text = std::fs::read_to_string(path).unwrap();
+    toml::from_str::<OnlyBus>(&text).unwrap().bus
+}
+
+#[test]
+fn every_node_runs_in_one_container_of_its_machine_on_its_site() {
+    let c = compose();
+    let services = c["services"].as_mapping().unwrap();
+    let router_of = |site: Site| match site {
+        Site::Local => ("local_lan", "tcp/172.30.1.2:7447"),
+        Site::Remote => ("remote_lan", "tcp/172.30.2.2:7447"),
+    };
+    for node in NODES {
+        let running: Vec<(&serde_yaml::Value, Vec<String>)> = services
+            .values()
+            .map(|s| (s, strings(&s["command"])))
+            .filter(|(_, cmd)| cmd.first().is_some_and(|b| b == node.name))
+            .collect();
+        assert_eq!(
+            running.len(),
+            1,
+            "{} must run in exactly one service",
+            node.name
+        );
+        let (service, cmd) = &running[0];
+        assert_eq!(cmd[1], "--config", "{}: {cmd:?}", node.name);
+        let config = cmd[2]
+            .strip_prefix("/etc/teleop/")
+            .unwrap_or_else(|| panic!("{}: config not under /etc/teleop: {cmd:?}", node.name));
+        let machine = node.machine.to_lowercase();
+        assert_eq!(config, format!("{machine}/{}.toml", node.name));
+        let path = repo_root().join("deploy/compose/config").join(config);
+        assert!(path.is_file(), "{} missing", path.display());
+        let (lan, router) = router_of(node.site);
+        assert_eq!(networks(service), [lan], "{}", node.name);
+        let bus = bus_of(&path);
+        assert_eq!(bus.zenoh.mode, Mode::Client, "{}", node.name);
+        assert_eq!(bus.zenoh.connect, [router], "{}", node.name);
+        assert!(bus.zenoh.listen.is_empty(), "{}", node.name);
+        assert!(!bus.zenoh.multicast_scouting, "{}", node.name);
+    }
+}
+
+#[test]
+fn only_the_two_routers_join_the_wan_and_keep_hardware_topics_off_it() {
+    let c = compose();
+    let services = c["services"].as_mapping().unwrap();
+    let on_wan: Vec<&str> = services
+        .iter()
+        .filter(|(_, s)| networks(s).iter().any(|n| n == "wan"))
+        .map(|(k, _)| k.as_str().unwrap())
+        .collect();
+    assert_eq!(on_wan, ["local-router", "remote-router"]);
+    for (router, lan_subnet) in [
+        ("local-router", "172.30.1.0/24"),
+        ("remote-router", "172.30.2.0/24"),
+    ] {
+        let path = repo_root().join(format!("deploy/compose/config/{router}/router.toml"));
+        let cfg: teleop_node::router::RouterConfig =
+            teleop_node::config::load_checked(&path).unwrap();
+        cfg.validate().unwrap();
+        assert!(
+            cfg.bus.zenoh.hardware_interfaces == ["lo", lan_subnet],
+            "{router}: {:?}",
+            cfg.bus.zenoh.hardware_interfaces
+        );
+    }
+    let subnet = |net: &str| {
+        c["networks"][net]["ipam"]["config"][0]["subnet"]
+            .as_str()
+            .unwrap()
+            .to_owned()
+    };
+    assert_eq!(subnet("local_lan"), "172.30.1.0/24");
+    assert_eq!(subnet("remote_lan"), "172.30.2.0/24");
+}
+
+#[test]
+fn the_image_scripts_ship_every_binary_of_the_node_table() {
+    for file in ["deploy/docker/build-images.sh", "deploy/docker/Dockerfile"] {
+        let text = std::fs::read_to_string(repo_root().join(file)).unwrap();
+        for name in NODES.iter().map(|n| n.name).chain(["teleop"]) {
+            assert!(
+                text.split(|c: char| !(c.is_alphanumeric() || c == '_'))
+                    .any(|w| w == name),
+                "{file} does not ship {name}"
+            );
+        }
+    }
+}
