@@ -1,7 +1,8 @@
 //! The multi-host deployment's files agree with the node table and with each other:
 //! every node of the table runs in one container of `deploy/compose/docker-compose.yml`
 //! with its machine's config, on its site's LAN, a client of its site's router; only
-//! the two routers join the WAN; the image scripts ship every binary. (The compose
+//! the routers and the link emulator between them join the WAN; the image scripts ship
+//! every binary. (The compose
 //! system itself runs in `deploy/compose/test.sh`, which CI runs.)
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
@@ -88,15 +89,31 @@ fn every_node_runs_in_one_container_of_its_machine_on_its_site() {
 }
 
 #[test]
-fn only_the_two_routers_join_the_wan_and_keep_hardware_topics_off_it() {
+fn only_the_routers_and_the_link_emulator_join_the_wan_and_hardware_stays_off_it() {
     let c = compose();
     let services = c["services"].as_mapping().unwrap();
-    let on_wan: Vec<&str> = services
-        .iter()
-        .filter(|(_, s)| networks(s).iter().any(|n| n == "wan"))
-        .map(|(k, _)| k.as_str().unwrap())
-        .collect();
-    assert_eq!(on_wan, ["local-router", "remote-router"]);
+    let on = |net: &str| -> Vec<&str> {
+        services
+            .iter()
+            .filter(|(_, s)| networks(s).iter().any(|n| n == net))
+            .map(|(k, _)| k.as_str().unwrap())
+            .collect()
+    };
+    // The emulator sits between the routers: no path around it.
+    assert_eq!(on("wan_local"), ["local-router", "wan-link"]);
+    assert_eq!(on("wan_remote"), ["wan-link", "remote-router"]);
+    let local: teleop_node::router::RouterConfig = teleop_node::config::load_checked(
+        &repo_root().join("deploy/compose/config/local-router/router.toml"),
+    )
+    .unwrap();
+    assert_eq!(local.bus.zenoh.connect, ["tcp/172.30.8.3:7447"]);
+    let link = strings(&services[&serde_yaml::Value::from("wan-link")]["command"]);
+    let arg = |name: &str| {
+        let i = link.iter().position(|a| a == name).unwrap();
+        link[i + 1].clone()
+    };
+    assert_eq!(arg("--listen"), "172.30.8.3:7447");
+    assert_eq!(arg("--upstream"), "172.30.9.2:7447");
     for (router, lan_subnet) in [
         ("local-router", "172.30.1.0/24"),
         ("remote-router", "172.30.2.0/24"),
@@ -125,7 +142,7 @@ fn only_the_two_routers_join_the_wan_and_keep_hardware_topics_off_it() {
 fn the_image_scripts_ship_every_binary_of_the_node_table() {
     for file in ["deploy/docker/build-images.sh", "deploy/docker/Dockerfile"] {
         let text = std::fs::read_to_string(repo_root().join(file)).unwrap();
-        for name in NODES.iter().map(|n| n.name).chain(["teleop"]) {
+        for name in NODES.iter().map(|n| n.name).chain(["teleop", "wan_link"]) {
             assert!(
                 text.split(|c: char| !(c.is_alphanumeric() || c == '_'))
                     .any(|w| w == name),

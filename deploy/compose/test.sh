@@ -54,7 +54,7 @@ if [[ $BUILD == 1 ]]; then
   bash "$ROOT/deploy/docker/build-images.sh"
 fi
 
-NODES=(local-router remote-router robot-sim pc2-arm pc2-hand pc2-feedback
+NODES=(local-router wan-link remote-router robot-sim pc2-arm pc2-hand pc2-feedback
   pc1-wrist-tracker pc1-camera-arm pc1-hand-inference)
 compose up -d "${NODES[@]}"
 # The recorder first, so it sees the task from its start; then the simulator.
@@ -100,6 +100,27 @@ feedback_operator=$(samples local_lan 172.30.1.2 /teleop/pr2/joint_states)
 echo "compose test: PR2 encoder samples heard on remote_lan: $hw_robot, on local_lan: $hw_operator; PR2 feedback samples on local_lan: $feedback_operator"
 if [[ $hw_robot -lt 1 || $hw_operator -ne 0 || $feedback_operator -lt 1 ]]; then
   echo "compose test: hardware topics must be heard on the robot's LAN only, feedback at the operator's site"
+  exit 1
+fi
+
+# Every byte between the sites went through the link emulator, both ways; a partition
+# cuts the operator's site off the robot's feedback, and it comes back after.
+link() { compose exec -T wan-link wan_link ctl --control 127.0.0.1:7500 "$@"; }
+shown=$(link show)
+echo "compose test: wan-link: $shown"
+up=$(sed -n 's/.* up_bytes=\([0-9]*\).*/\1/p' <<<"$shown")
+down=$(sed -n 's/.* down_bytes=\([0-9]*\).*/\1/p' <<<"$shown")
+if [[ ${up:-0} -lt 100000 || ${down:-0} -lt 100000 ]]; then
+  echo "compose test: too little traffic through the link emulator (up $up, down $down bytes)"
+  exit 1
+fi
+link partition on >/dev/null
+cut_off=$(samples local_lan 172.30.1.2 /teleop/pr2/joint_states)
+link partition off >/dev/null
+back=$(samples local_lan 172.30.1.2 /teleop/pr2/joint_states)
+echo "compose test: PR2 feedback samples at the operator's site during a partition: $cut_off, after it: $back"
+if [[ $cut_off -ne 0 || $back -lt 1 ]]; then
+  echo "compose test: a partition must cut the feedback off, and the link must come back"
   exit 1
 fi
 

@@ -17,8 +17,9 @@ TARGET=${CARGO_TARGET_DIR:-$ROOT/target}
 IMAGE=${TELEOP_IMAGE:-teleop:local}
 BASE=${TELEOP_BASE_IMAGE:-teleop-base:bookworm}
 # The node table's binaries (shared/interfaces/src/nodes.rs) and the `teleop` tool
-# (router, report, inspection). tests/compose.rs checks this list against the table.
-BINARIES=(teleop remote_sim pr2_arm_controller shadow_hand_controller feedback_publisher
+# (router, report, inspection), and the WAN link emulator. tests/compose.rs checks this
+# list against the table.
+BINARIES=(teleop wan_link remote_sim pr2_arm_controller shadow_hand_controller feedback_publisher
   local_sim wrist_tracker camera_arm hand_inference)
 
 if [[ ${SKIP_CARGO_BUILD:-0} != 1 ]]; then

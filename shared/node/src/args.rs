@@ -235,7 +235,7 @@ mod tests {
             connect: vec!["tcp/127.0.0.1:7447".into()],
             no_multicast_scouting: true,
             domain_id: Some(7),
-            hardware_interface: vec!["10.0.0.0/8".into()],
+            hardware_interface: vec!["127.0.0.0/8".into()],
             time_scale: Some(0.5),
             time_origin_ns: Some(1_700_000_000_000_000_000),
             ..Default::default()
@@ -245,7 +245,7 @@ mod tests {
         assert_eq!(cfg.zenoh.mode, Mode::Client);
         assert_eq!(cfg.domain_id, 7);
         assert!(!cfg.zenoh.multicast_scouting);
-        assert_eq!(cfg.zenoh.hardware_interfaces, ["10.0.0.0/8"]);
+        assert_eq!(cfg.zenoh.hardware_interfaces, ["127.0.0.0/8"]);
         assert_eq!(
             cfg.time,
             Some(teleop_bus::TimeScale {
@@ -265,7 +265,7 @@ mod tests {
                 "--domain-id",
                 "7",
                 "--hardware-interface",
-                "10.0.0.0/8",
+                "127.0.0.0/8",
                 "--time-scale",
                 "0.5",
                 "--time-origin-ns",

@@ -1,0 +1,404 @@
+//! The WAN link emulator between the two sites' Zenoh routers.
+//!
+//! The kernel of the development machines has no `netem` qdisc, so the WAN goes through
+//! this forwarder: the local router connects to it as if it were the remote router, and
+//! it forwards each connection's bytes to the remote router and back, in both
+//! directions, with
+//!
+//! * **delay** and **jitter**: each chunk of bytes read is delivered `delay + U(-jitter,
+//!   +jitter)` after it was read (never before `delay - jitter`, never before 0), in
+//!   order, as TCP delivers;
+//! * **bandwidth caps**: the chunks leave one after the other at `rate_mbit`, so a
+//!   burst queues; the queue is bounded (`queue_kb`), and a full queue stops the
+//!   forwarder reading from the sender, whose TCP send buffer then fills: the
+//!   backpressure a slow link gives, which Zenoh answers by dropping what its
+//!   congestion control allows (camera images) before it blocks what must arrive;
+//! * **loss** as a TCP connection experiences it: a lost segment is retransmitted, so
+//!   each of a chunk's 1448-byte segments is lost with probability `loss`, and a chunk
+//!   with a lost segment (and everything behind it: in order) arrives
+//!   `retransmit_ms` later (default 200 ms, Linux's minimum retransmission timeout);
+//!   the bytes are never dropped, since the routers' link is TCP;
+//! * **partitions**: nothing is forwarded either way while partitioned; what was
+//!   sent waits, as in the senders' retransmission queues, and flows when the link
+//!   returns (unless the routers' sessions have timed out by then).
+//!
+//! Seeded (`seed`; each direction of each connection draws from its own stream), and
+//! changed at run time over a line-based control port ([`Command`]). The pure part,
+//! [`Link`] (when does a chunk arrive), is separate from the forwarding ([`proxy`]).
+
+pub mod measure;
+pub mod proxy;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// TCP's maximum segment size on an Ethernet path (1500 - 20 - 20 - 12 bytes).
+pub const SEGMENT_BYTES: usize = 1448;
+
+/// The impairment of the link, the same in both directions.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Impairment {
+    /// One-way delay, ms.
+    pub delay_ms: f64,
+    /// Uniform jitter around the delay, +- ms (<= `delay_ms`: nothing arrives early).
+    pub jitter_ms: f64,
+    /// Probability that one TCP segment is lost, [0, 1).
+    pub loss: f64,
+    /// What a loss costs the chunk it hits (and those behind it), ms.
+    pub retransmit_ms: f64,
+    /// Bandwidth cap, Mbit/s; `None`: uncapped.
+    pub rate_mbit: Option<f64>,
+    /// How many bytes may wait for the capped link before the sender is held, KiB.
+    pub queue_kb: usize,
+    /// Nothing flows while true.
+    pub partitioned: bool,
+}
+
+impl Default for Impairment {
+    fn default() -> Self {
+        Self {
+            delay_ms: 0.0,
+            jitter_ms: 0.0,
+            loss: 0.0,
+            retransmit_ms: 200.0,
+            rate_mbit: None,
+            queue_kb: 256,
+            partitioned: false,
+        }
+    }
+}
+
+/// A setting out of its range, or a control line that cannot be read.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LinkError {
+    #[error("{field} must be {range}, got {value}")]
+    OutOfRange {
+        field: &'static str,
+        range: &'static str,
+        value: String,
+    },
+    #[error(
+        "unknown setting `{0}` (delay_ms, jitter_ms, loss_pct, retransmit_ms, rate_mbit, queue_kb)"
+    )]
+    UnknownSetting(String),
+    #[error("`{0}` is not key=value")]
+    NotKeyValue(String),
+    #[error("unknown command `{0}` (set, partition on|off, reset, show)")]
+    UnknownCommand(String),
+}
+
+impl Impairment {
+    /// # Errors
+    /// [`LinkError::OutOfRange`] naming the first field out of its range.
+    pub fn validate(&self) -> Result<(), LinkError> {
+        let bad = |field, range, value: f64| {
+            Err(LinkError::OutOfRange {
+                field,
+                range,
+                value: value.to_string(),
+            })
+        };
+        if !(self.delay_ms.is_finite() && (0.0..=10_000.0).contains(&self.delay_ms)) {
+            return bad("delay_ms", "in [0, 10000]", self.delay_ms);
+        }
+        if !(self.jitter_ms.is_finite() && self.jitter_ms >= 0.0 && self.jitter_ms <= self.delay_ms)
+        {
+            return bad("jitter_ms", "in [0, delay_ms]", self.jitter_ms);
+        }
+        if !(self.loss.is_finite() && (0.0..0.5).contains(&self.loss)) {
+            return bad("loss_pct", "in [0, 50)", self.loss * 100.0);
+        }
+        if !(self.retransmit_ms.is_finite() && (0.0..=10_000.0).contains(&self.retransmit_ms)) {
+            return bad("retransmit_ms", "in [0, 10000]", self.retransmit_ms);
+        }
+        if let Some(r) = self.rate_mbit
+            && !(r.is_finite() && (0.01..=100_000.0).contains(&r))
+        {
+            return bad("rate_mbit", "in [0.01, 100000] (0 for uncapped)", r);
+        }
+        if !(1..=1_048_576).contains(&self.queue_kb) {
+            #[allow(clippy::cast_precision_loss)]
+            return bad("queue_kb", "in [1, 1048576]", self.queue_kb as f64);
+        }
+        Ok(())
+    }
+
+    /// The settings as one `key=value` line (what `show` prints, what `set` reads).
+    pub fn describe(&self) -> String {
+        format!(
+            "delay_ms={} jitter_ms={} loss_pct={} retransmit_ms={} rate_mbit={} queue_kb={} partitioned={}",
+            self.delay_ms,
+            self.jitter_ms,
+            self.loss * 100.0,
+            self.retransmit_ms,
+            self.rate_mbit.unwrap_or(0.0),
+            self.queue_kb,
+            self.partitioned
+        )
+    }
+
+    /// Applies `key=value` settings (a `set` line's arguments) to a copy and validates
+    /// it.
+    ///
+    /// # Errors
+    /// [`LinkError`] naming the setting.
+    pub fn with(&self, settings: &[&str]) -> Result<Self, LinkError> {
+        let mut out = *self;
+        for kv in settings {
+            let (k, v) = kv
+                .split_once('=')
+                .ok_or_else(|| LinkError::NotKeyValue((*kv).to_owned()))?;
+            let num = |field: &'static str| {
+                v.parse::<f64>().map_err(|_| LinkError::OutOfRange {
+                    field,
+                    range: "a number",
+                    value: v.to_owned(),
+                })
+            };
+            match k {
+                "delay_ms" => out.delay_ms = num("delay_ms")?,
+                "jitter_ms" => out.jitter_ms = num("jitter_ms")?,
+                "loss_pct" => out.loss = num("loss_pct")? / 100.0,
+                "retransmit_ms" => out.retransmit_ms = num("retransmit_ms")?,
+                "rate_mbit" => {
+                    let r = num("rate_mbit")?;
+                    out.rate_mbit = if r == 0.0 { None } else { Some(r) };
+                }
+                "queue_kb" => {
+                    out.queue_kb = v.parse().map_err(|_| LinkError::OutOfRange {
+                        field: "queue_kb",
+                        range: "a whole number",
+                        value: v.to_owned(),
+                    })?;
+                }
+                other => return Err(LinkError::UnknownSetting(other.to_owned())),
+            }
+        }
+        out.validate()?;
+        Ok(out)
+    }
+}
+
+/// A control-port command, one per line.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Command {
+    /// `set delay_ms=50 jitter_ms=5 loss_pct=1 rate_mbit=10 ...`: the named settings
+    /// change, the others stay.
+    Set(Impairment),
+    /// `partition on` / `partition off`.
+    Partition(bool),
+    /// `reset`: no impairment, no partition.
+    Reset,
+    /// `show`: the settings and the counters.
+    Show,
+}
+
+impl Command {
+    /// Parses one control line against the current settings.
+    ///
+    /// # Errors
+    /// [`LinkError`] naming what was wrong.
+    pub fn parse(line: &str, current: &Impairment) -> Result<Self, LinkError> {
+        let words: Vec<&str> = line.split_whitespace().collect();
+        match words.as_slice() {
+            ["set", settings @ ..] => Ok(Self::Set(current.with(settings)?)),
+            ["partition", "on"] => Ok(Self::Partition(true)),
+            ["partition", "off"] => Ok(Self::Partition(false)),
+            ["reset"] => Ok(Self::Reset),
+            ["show"] => Ok(Self::Show),
+            _ => Err(LinkError::UnknownCommand(line.trim().to_owned())),
+        }
+    }
+}
+
+/// One direction of one connection: when each chunk read from the sender is delivered.
+#[derive(Debug)]
+pub struct Link {
+    rng: ChaCha8Rng,
+    /// When the capped link is free for the next chunk, s.
+    free_s: f64,
+    /// When the previous chunk is delivered (TCP is in order), s.
+    last_s: f64,
+    /// Chunks delayed by a loss so far.
+    pub losses: u64,
+    /// Chunks scheduled so far.
+    pub chunks: u64,
+}
+
+impl Link {
+    /// A direction drawing from stream `stream` of seed `seed`.
+    pub fn new(seed: u64, stream: u64) -> Self {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        rng.set_stream(stream);
+        Self {
+            rng,
+            free_s: f64::NEG_INFINITY,
+            last_s: f64::NEG_INFINITY,
+            losses: 0,
+            chunks: 0,
+        }
+    }
+
+    /// When a chunk of `len` bytes read at `t_s` is delivered under `imp` (not
+    /// partitioned: the forwarder holds chunks while it is).
+    pub fn schedule(&mut self, imp: &Impairment, t_s: f64, len: usize) -> f64 {
+        self.chunks += 1;
+        // Onto the wire when the link is free, for len * 8 / rate.
+        let start = t_s.max(self.free_s);
+        #[allow(clippy::cast_precision_loss)]
+        let on_wire = imp.rate_mbit.map_or(0.0, |r| (len * 8) as f64 / (r * 1e6));
+        self.free_s = start + on_wire;
+        let jitter = if imp.jitter_ms > 0.0 {
+            self.rng.random_range(-imp.jitter_ms..=imp.jitter_ms)
+        } else {
+            0.0
+        };
+        let mut arrive = self.free_s + (imp.delay_ms + jitter) * 1e-3;
+        if imp.loss > 0.0 {
+            let segments = len.div_ceil(SEGMENT_BYTES).max(1);
+            let p_any = 1.0 - (1.0 - imp.loss).powi(i32::try_from(segments).unwrap_or(i32::MAX));
+            if self.rng.random_bool(p_any.clamp(0.0, 1.0)) {
+                self.losses += 1;
+                arrive += imp.retransmit_ms * 1e-3;
+            }
+        }
+        // In order: never before the chunk ahead of it.
+        let arrive = arrive.max(self.last_s);
+        self.last_s = arrive;
+        arrive
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn delay_and_jitter_stay_in_their_band_and_in_order() {
+        let imp = Impairment {
+            delay_ms: 50.0,
+            jitter_ms: 10.0,
+            ..Impairment::default()
+        };
+        let mut link = Link::new(7, 0);
+        let mut last = f64::NEG_INFINITY;
+        let mut sum = 0.0;
+        for k in 0..10_000 {
+            let t = f64::from(k) * 0.001;
+            let a = link.schedule(&imp, t, 100);
+            assert!(a >= last, "out of order at {k}");
+            last = a;
+            // In order, so a chunk may wait behind a later-drawn earlier one, but
+            // never arrives before delay - jitter nor after delay + jitter + the 1 ms
+            // between chunks.
+            let d = (a - t) * 1e3;
+            assert!((40.0 - 1e-9..=60.0 + 1e-9).contains(&d), "{d} ms at {k}");
+            sum += d;
+        }
+        let mean = sum / 10_000.0;
+        assert!((50.0..56.0).contains(&mean), "mean {mean} ms");
+    }
+
+    #[test]
+    fn the_same_seed_gives_the_same_schedule() {
+        let imp = Impairment {
+            delay_ms: 20.0,
+            jitter_ms: 5.0,
+            loss: 0.05,
+            ..Impairment::default()
+        };
+        let run = |seed, stream| {
+            let mut l = Link::new(seed, stream);
+            (0..100)
+                .map(|k| l.schedule(&imp, f64::from(k) * 0.01, 3000))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(run(1, 0), run(1, 0));
+        assert_ne!(run(1, 0), run(1, 1));
+        assert_ne!(run(1, 0), run(2, 0));
+    }
+
+    #[test]
+    fn the_rate_cap_queues_a_burst() {
+        let imp = Impairment {
+            rate_mbit: Some(8.0),
+            ..Impairment::default()
+        };
+        let mut link = Link::new(1, 0);
+        // Ten 10 kB chunks at once on 8 Mbit/s = 1 MB/s: one every 10 ms.
+        let arrivals: Vec<f64> = (0..10).map(|_| link.schedule(&imp, 0.0, 10_000)).collect();
+        for (k, a) in arrivals.iter().enumerate() {
+            #[allow(clippy::cast_precision_loss)]
+            let expect = (k + 1) as f64 * 0.01;
+            assert!((a - expect).abs() < 1e-9, "{k}: {a}");
+        }
+    }
+
+    #[test]
+    fn loss_costs_the_retransmission_delay_at_its_rate() {
+        let imp = Impairment {
+            loss: 0.01,
+            ..Impairment::default()
+        };
+        let mut link = Link::new(3, 0);
+        // One-segment chunks 1 s apart: no queueing, each lost with p = 1 %.
+        let mut hit = 0;
+        for k in 0..20_000 {
+            let t = f64::from(k);
+            let d = link.schedule(&imp, t, 1000) - t;
+            assert!(d == 0.0 || (d - 0.2).abs() < 1e-9, "{d}");
+            hit += u32::from(d > 0.0);
+        }
+        assert_eq!(u64::from(hit), link.losses);
+        assert!((150..250).contains(&hit), "{hit} of 20000");
+        // A chunk of ten segments is hit ~10x as often.
+        let mut link = Link::new(3, 1);
+        for k in 0..2000 {
+            link.schedule(&imp, f64::from(k), 10 * SEGMENT_BYTES);
+        }
+        assert!((140..250).contains(&link.losses), "{}", link.losses);
+    }
+
+    #[test]
+    fn control_lines_are_parsed_and_bad_ones_named() {
+        let cur = Impairment::default();
+        let Command::Set(s) =
+            Command::parse("set delay_ms=50 jitter_ms=5 loss_pct=1 rate_mbit=10", &cur)
+                .expect("set")
+        else {
+            panic!("not a set")
+        };
+        assert_eq!(s.delay_ms, 50.0);
+        assert_eq!(s.jitter_ms, 5.0);
+        assert!((s.loss - 0.01).abs() < 1e-12);
+        assert_eq!(s.rate_mbit, Some(10.0));
+        let Command::Set(u) = Command::parse("set rate_mbit=0", &s).expect("set") else {
+            panic!("not a set")
+        };
+        assert_eq!(u.rate_mbit, None);
+        assert_eq!(u.delay_ms, 50.0, "unnamed settings stay");
+        assert_eq!(
+            Command::parse("partition on", &cur),
+            Ok(Command::Partition(true))
+        );
+        assert_eq!(
+            Command::parse(" partition off ", &cur),
+            Ok(Command::Partition(false))
+        );
+        assert_eq!(Command::parse("reset", &cur), Ok(Command::Reset));
+        for (line, named) in [
+            ("set delay_ms=-1", "delay_ms"),
+            ("set delay_ms=10 jitter_ms=20", "jitter_ms"),
+            ("set loss_pct=60", "loss_pct"),
+            ("set loss_pct=nan", "loss_pct"),
+            ("set rate_mbit=abc", "rate_mbit"),
+            ("set bandwidth=3", "bandwidth"),
+            ("set delay_ms", "delay_ms"),
+            ("partition maybe", "partition maybe"),
+            ("drop all", "drop all"),
+        ] {
+            let e = Command::parse(line, &cur).expect_err(line).to_string();
+            assert!(e.contains(named), "{line}: {e}");
+        }
+    }
+}

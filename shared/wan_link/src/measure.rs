@@ -1,0 +1,145 @@
+//! Measures the emulator itself on loopback: a sender writes small timestamped
+//! messages through it to a receiver, which takes each one's one-way delay (one clock:
+//! both ends in this process); a bulk transfer measures the throughput under a cap.
+//! `wan_link measure` prints the results next to the configured values; the tests
+//! assert the emulator's guarantees on them (nothing early, nothing faster than the
+//! cap, nothing through a partition).
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::{TcpListener, TcpStream};
+use tokio::time::Instant;
+
+use crate::Impairment;
+use crate::proxy::{self, Emulator};
+
+/// An emulator on loopback forwarding to a receiver; the sender's stream.
+#[derive(Debug)]
+pub struct Rig {
+    pub emulator: Arc<Emulator>,
+    pub sender: TcpStream,
+    pub receiver: TcpStream,
+    tasks: Vec<tokio::task::JoinHandle<()>>,
+}
+
+impl Drop for Rig {
+    fn drop(&mut self) {
+        for t in &self.tasks {
+            t.abort();
+        }
+    }
+}
+
+impl Rig {
+    /// # Errors
+    /// Binding or connecting on loopback.
+    pub async fn new(imp: Impairment, seed: u64) -> std::io::Result<Self> {
+        let sink = TcpListener::bind("127.0.0.1:0").await?;
+        let sink_addr = sink.local_addr()?;
+        let front = TcpListener::bind("127.0.0.1:0").await?;
+        let front_addr = front.local_addr()?;
+        let emulator = Emulator::new(imp, seed);
+        let fwd = tokio::spawn(proxy::forward(
+            emulator.clone(),
+            front,
+            sink_addr.to_string(),
+        ));
+        let sender = TcpStream::connect(front_addr).await?;
+        sender.set_nodelay(true)?;
+        let (receiver, _) = sink.accept().await?;
+        Ok(Self {
+            emulator,
+            sender,
+            receiver,
+            tasks: vec![fwd],
+        })
+    }
+}
+
+/// One-way delays of `n` 64-byte messages sent every `every`, ms.
+///
+/// # Errors
+/// The loopback connection failing.
+pub async fn delays(rig: &mut Rig, n: usize, every: Duration) -> std::io::Result<Vec<f64>> {
+    let epoch = Instant::now();
+    let (mut rx, _) = rig.receiver.split();
+    let (_, mut tx) = rig.sender.split();
+    let send = async {
+        for _ in 0..n {
+            let mut msg = [0u8; 64];
+            let t = u64::try_from(epoch.elapsed().as_nanos()).unwrap_or(u64::MAX);
+            msg[..8].copy_from_slice(&t.to_le_bytes());
+            tx.write_all(&msg).await?;
+            tokio::time::sleep(every).await;
+        }
+        Ok::<(), std::io::Error>(())
+    };
+    let recv = async {
+        let mut out = Vec::with_capacity(n);
+        let mut msg = [0u8; 64];
+        for _ in 0..n {
+            rx.read_exact(&mut msg).await?;
+            let now = epoch.elapsed().as_nanos();
+            let mut t = [0u8; 8];
+            t.copy_from_slice(&msg[..8]);
+            let sent = u128::from(u64::from_le_bytes(t));
+            #[allow(clippy::cast_precision_loss)]
+            out.push(now.saturating_sub(sent) as f64 * 1e-6);
+        }
+        Ok::<Vec<f64>, std::io::Error>(out)
+    };
+    let ((), d) = tokio::try_join!(send, recv)?;
+    Ok(d)
+}
+
+/// Bytes per second through the rig for a bulk transfer of `bytes`.
+///
+/// # Errors
+/// The loopback connection failing.
+pub async fn throughput(rig: &mut Rig, bytes: usize) -> std::io::Result<f64> {
+    let (mut rx, _) = rig.receiver.split();
+    let (_, mut tx) = rig.sender.split();
+    let start = Instant::now();
+    let send = async {
+        let block = vec![0u8; 64 * 1024];
+        let mut left = bytes;
+        while left > 0 {
+            let k = left.min(block.len());
+            tx.write_all(&block[..k]).await?;
+            left -= k;
+        }
+        Ok::<(), std::io::Error>(())
+    };
+    let recv = async {
+        let mut buf = vec![0u8; 64 * 1024];
+        let mut got = 0;
+        while got < bytes {
+            let n = rx.read(&mut buf).await?;
+            if n == 0 {
+                break;
+            }
+            got += n;
+        }
+        Ok::<usize, std::io::Error>(got)
+    };
+    let ((), got) = tokio::try_join!(send, recv)?;
+    #[allow(clippy::cast_precision_loss)]
+    Ok(got as f64 / start.elapsed().as_secs_f64())
+}
+
+/// The `q`-quantile of `v` (sorted in place).
+pub fn quantile(v: &mut [f64], q: f64) -> f64 {
+    v.sort_by(f64::total_cmp);
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    #[allow(
+        clippy::cast_precision_loss,
+        clippy::cast_possible_truncation,
+        clippy::cast_sign_loss
+    )]
+    let i = ((v.len() - 1) as f64 * q).round() as usize;
+    v[i]
+}
