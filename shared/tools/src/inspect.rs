@@ -204,6 +204,10 @@ async fn echo_typed<T: Message>(
                 serde_json::json!({
                     "sequence": r.sequence,
                     "latency_ms": r.latency_ns() as f64 / 1e6,
+                    // When it was sent (the publisher's clock) and received (ours), s
+                    // since the epoch: a timeline to compare with other topics.
+                    "sent_s": r.source_timestamp_ns as f64 * 1e-9,
+                    "received_s": r.receive_time_s(),
                 }),
             );
         }

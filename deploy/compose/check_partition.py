@@ -1,0 +1,80 @@
+"""Checks a WAN partition during a clutched motion, from what a listener on the robot
+site's LAN recorded (`teleop topic echo --format json` of /teleop/wrist_pose and
+/teleop/status): the PR2 arm controller stopped within 100 ms of the deadline of the
+last valid wrist pose it could have had before the partition, it refused the stale
+commands the link released when it returned, and it stayed stopped afterwards (no
+fresh clutch press came). Prints what it measured; exits 1 on a miss."""
+
+import json
+import sys
+
+WRIST_POSE_DEADLINE_S = 0.100  # the topic table's deadline; the arm's pose_deadline_s
+STOP_WITHIN_S = 0.100          # the issue's bound after that deadline
+ACTIVE = 2
+
+
+def lines(path):
+    with open(path, encoding="utf-8") as f:
+        return [json.loads(l) for l in f if l.strip().startswith("{")]
+
+
+def counter(status, name):
+    try:
+        return status["counter_values"][status["counter_names"].index(name)]
+    except ValueError:
+        return None
+
+
+def main(wrist_path, status_path, partition_on_s, partition_off_s):
+    on, off = float(partition_on_s), float(partition_off_s)
+    wrist = sorted(w["_meta"]["received_s"] for w in lines(wrist_path))
+    arm = [s for s in lines(status_path) if s["node_name"] == "pr2_arm_controller"]
+    arm.sort(key=lambda s: s["_meta"]["sent_s"])
+    ok = True
+
+    def check(cond, text):
+        nonlocal ok
+        ok &= cond
+        print(f"  {'ok ' if cond else 'BAD'} {text}")
+
+    # The cut: the longest silence of the wrist poses around the partition (the
+    # commands that set it take a moment to reach the emulator).
+    window = [t for t in wrist if on - 1.0 <= t <= off + 2.0]
+    gaps = [(b - a, a, b) for a, b in zip(window, window[1:])]
+    check(bool(gaps), f"wrist poses around the partition ({len(window)})")
+    if not gaps:
+        return 1
+    silence, last, back = max(gaps)
+    check(silence >= 1.5, f"the wrist poses fell silent for {silence:.2f} s (partition 2 s)")
+    deadline = last + WRIST_POSE_DEADLINE_S
+    at_cut = [s for s in arm if s["_meta"]["sent_s"] <= last]
+    check(bool(at_cut) and at_cut[-1]["lifecycle_state"] == ACTIVE,
+          "the arm was Active (clutched, moving) when the link was cut")
+    stops = [s for s in arm if s["_meta"]["sent_s"] > last and s["lifecycle_state"] != ACTIVE]
+    check(bool(stops), "the arm left Active after the link was cut")
+    if not (at_cut and stops):
+        return 1
+    stop = stops[0]["_meta"]["sent_s"]
+    late = stop - deadline
+    check(late <= STOP_WITHIN_S,
+          f"stopped {1e3 * (stop - last):.0f} ms after the last valid wrist pose, "
+          f"{1e3 * late:.0f} ms after its deadline (bound {1e3 * STOP_WITHIN_S:.0f} ms)")
+    resumed = [s for s in arm if s["_meta"]["sent_s"] > stop and s["lifecycle_state"] == ACTIVE]
+    check(not resumed, f"stayed stopped after the link returned ({len(resumed)} Active reports; "
+          f"the last report {arm[-1]['_meta']['sent_s'] - back:.1f} s after the poses came back)")
+    engaged_at_cut = counter(at_cut[-1], "arm.engagements")
+    engaged_end = counter(arm[-1], "arm.engagements")
+    check(engaged_end == engaged_at_cut,
+          f"no new engagement after the cut (arm.engagements {engaged_at_cut} -> {engaged_end})")
+    stale_at_cut = counter(at_cut[-1], "wrist_pose.rejected_stale") or 0
+    stale_end = counter(arm[-1], "wrist_pose.rejected_stale") or 0
+    check(stale_end > stale_at_cut,
+          f"the stale wrist poses the link released were refused ({stale_at_cut} -> {stale_end})")
+    reasons = {n: v for n, v in zip(arm[-1]["counter_names"], arm[-1]["counter_values"])
+               if n.startswith("arm.stop.") and v}
+    print(f"  stop counters at the end: {reasons}")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main(*sys.argv[1:5]))
