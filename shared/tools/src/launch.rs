@@ -276,7 +276,7 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
     } else {
         None
     };
-    let mut recorder = Recorder::new(&bus, &task_name).await?;
+    let mut recorder = Recorder::new(&bus, &task_name, "teleop launch").await?;
     let mut children: Vec<(&'static NodeSpec, Child)> = Vec::new();
     let mut _terminal = None;
     for spec in NODES {

@@ -51,7 +51,7 @@ pub async fn run(args: ReportArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
     zenoh.apply(&mut cfg);
     let bus = Bus::open(&format!("teleop_report_{}", std::process::id()), &cfg).await?;
     let status = bus.subscriber(&topics::NODE_STATUS).await?;
-    let mut recorder = Recorder::new(&bus, &args.task).await?;
+    let mut recorder = Recorder::new(&bus, &args.task, "teleop report").await?;
     tracing::info!(task = %args.task, "recording");
     let mut latest: BTreeMap<String, NodeStatus> = BTreeMap::new();
     let started = tokio::time::Instant::now();

@@ -79,6 +79,9 @@ pub struct RunReport {
     /// Simulated seconds per wall second (`--time-scale`; 1 = real time). Every time
     /// and latency in the report is in simulated time.
     pub time_scale: f64,
+    /// The command that recorded it: `teleop launch` (the system it started) or
+    /// `teleop report` (a system started elsewhere).
+    pub recorded_by: String,
     pub latency: Vec<StageLatency>,
     /// Hand inference's own stage timings (its status counters), µs.
     pub hand_inference_stages_us: BTreeMap<String, u64>,
@@ -327,7 +330,7 @@ impl Recorder {
     ///
     /// # Errors
     /// Bus declarations; the PR2 model.
-    pub async fn new(bus: &Bus, task: &str) -> anyhow::Result<Self> {
+    pub async fn new(bus: &Bus, task: &str, recorded_by: &str) -> anyhow::Result<Self> {
         Ok(Self {
             start_s: bus.now_s(),
             truth_pose: bus.subscriber(&topics::SIM_OPERATOR_HAND_POSE).await?,
@@ -355,6 +358,7 @@ impl Recorder {
             report: RunReport {
                 task: task.to_owned(),
                 time_scale: bus.clock().rate(),
+                recorded_by: recorded_by.to_owned(),
                 ..RunReport::default()
             },
             pr2_abs: [0.0; 3],
@@ -640,7 +644,8 @@ impl RunReport {
         let mut s = String::new();
         let _ = writeln!(
             s,
-            "== teleop launch: end-of-run report ({} task, {:.1} s{})",
+            "== {}: end-of-run report ({} task, {:.1} s{})",
+            self.recorded_by,
             self.task,
             self.duration_s,
             self.time_scale_note()
@@ -772,7 +777,8 @@ impl RunReport {
         let root = root
             .titled(
                 &format!(
-                    "teleop launch: {} task, {:.0} s{}",
+                    "{}: {} task, {:.0} s{}",
+                    self.recorded_by,
                     self.task,
                     self.duration_s,
                     self.time_scale_note()
