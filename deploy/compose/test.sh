@@ -124,29 +124,37 @@ if [[ $cut_off -ne 0 || $back -lt 1 ]]; then
   exit 1
 fi
 
-# A 2 s partition during a clutched motion: the task starts over (the simulator
-# restarted: clutch pressed 2 s in), a listener on the robot's LAN records the wrist
-# poses and the nodes' statuses, the link is cut 7 s in for 2 s; check_partition.py
-# checks the arm stopped in time, refused what the link released late and stayed
-# stopped without a fresh clutch press.
-docker run -d --rm --label "com.docker.compose.project=$COMPOSE_PROJECT_NAME" \
-  --network "${COMPOSE_PROJECT_NAME}_remote_lan" -v "$TELEOP_REPORT_DIR:/out" "$IMAGE" sh -c '
-    z="--mode client --connect tcp/172.30.2.2:7447 --no-multicast-scouting"
-    teleop $z topic echo /teleop/wrist_pose --format json --duration-s 16 >/out/wrist.jsonl &
-    teleop $z topic echo /teleop/status --format json --duration-s 16 >/out/status.jsonl
-    wait' >"$TELEOP_REPORT_DIR/probe.id"
-sleep 1.5
-compose restart -t 5 pc3-local-sim
-sleep 7
-t_on=$(date +%s.%N)
-link partition on >/dev/null
-sleep 2
-link partition off >/dev/null
-t_off=$(date +%s.%N)
-docker wait "$(cat "$TELEOP_REPORT_DIR/probe.id")" >/dev/null 2>&1 || true
-echo "compose test: a 2 s partition during a clutched motion"
-python3 "$HERE/check_partition.py" "$TELEOP_REPORT_DIR/wrist.jsonl" \
-  "$TELEOP_REPORT_DIR/status.jsonl" "$t_on" "$t_off"
+# A 2 s cut of the commands during a clutched motion: the task starts over (the
+# simulator restarted: clutch pressed 2 s in), a listener on the robot's LAN records
+# the wrist poses and the nodes' statuses, the cut comes 7 s in and lasts 2 s;
+# check_partition.py checks the arm stopped in time and stayed stopped without a fresh
+# clutch press. Two cuts: a WAN partition (what the link held is released late and
+# must be refused), and the commanding wrist tracker's container paused (a frozen
+# process, not a dead one).
+cut_test() { # name cut-command restore-command [--released-late]
+  local name=$1 cut=$2 restore=$3 flag=${4:-}
+  docker run -d --rm --label "com.docker.compose.project=$COMPOSE_PROJECT_NAME" \
+    --network "${COMPOSE_PROJECT_NAME}_remote_lan" -v "$TELEOP_REPORT_DIR:/out" "$IMAGE" sh -c "
+      z='--mode client --connect tcp/172.30.2.2:7447 --no-multicast-scouting'
+      teleop \$z topic echo /teleop/wrist_pose --format json --duration-s 16 >/out/$name-wrist.jsonl &
+      teleop \$z topic echo /teleop/status --format json --duration-s 16 >/out/$name-status.jsonl
+      wait" >"$TELEOP_REPORT_DIR/probe.id"
+  sleep 1.5
+  compose restart -t 5 pc3-local-sim
+  sleep 7
+  local t_on t_off
+  t_on=$(date +%s.%N)
+  eval "$cut" >/dev/null
+  sleep 2
+  eval "$restore" >/dev/null
+  t_off=$(date +%s.%N)
+  docker wait "$(cat "$TELEOP_REPORT_DIR/probe.id")" >/dev/null 2>&1 || true
+  echo "compose test: a 2 s $name during a clutched motion"
+  python3 "$HERE/check_partition.py" "$TELEOP_REPORT_DIR/$name-wrist.jsonl" \
+    "$TELEOP_REPORT_DIR/$name-status.jsonl" "$t_on" "$t_off" $flag
+}
+cut_test partition "link partition on" "link partition off" --released-late
+cut_test pause "compose pause pc1-wrist-tracker" "compose unpause pc1-wrist-tracker"
 
 teardown
 trap - EXIT
