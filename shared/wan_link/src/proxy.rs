@@ -204,13 +204,17 @@ async fn pump(
     let reader = async {
         let mut buf = vec![0u8; CHUNK_BYTES];
         loop {
-            // Hold the sender while the queue is full.
+            // Hold the sender while the queue is full. The wake-up is registered
+            // before the check, so a chunk delivered in between is not missed.
             loop {
+                let woken = changed.notified();
+                tokio::pin!(woken);
+                woken.as_mut().enable();
                 let limit = em.impairment().queue_kb * 1024;
                 if queue.lock().await.bytes < limit {
                     break;
                 }
-                changed.notified().await;
+                woken.await;
             }
             let n = match rd.read(&mut buf).await {
                 Ok(0) | Err(_) => break,
@@ -236,6 +240,10 @@ async fn pump(
     let writer = async {
         let mut imp_rx = em.impairment.subscribe();
         loop {
+            // Registered before the check, so a chunk queued in between wakes it.
+            let woken = changed.notified();
+            tokio::pin!(woken);
+            woken.as_mut().enable();
             let next = {
                 let q = queue.lock().await;
                 match q.chunks.front() {
@@ -245,8 +253,7 @@ async fn pump(
                 }
             };
             let Some(at) = next else {
-                // Wait for a chunk (the notify may race with the check: re-check often).
-                let _ = tokio::time::timeout(Duration::from_millis(5), changed.notified()).await;
+                woken.await;
                 continue;
             };
             let wait = at - em.now_s();
