@@ -142,6 +142,14 @@ fn unknown_and_misspelled_fields_are_named() {
     let mut cfg: WristTrackerConfig = parse_toml("[bus.zenoh]\nmode = \"router\"\n").unwrap();
     let err = teleop_node::config::validate_all(&mut cfg).unwrap_err();
     assert!(err.contains("teleop router"), "{err}");
+    // A malformed hardware subnet is named at load, for nodes as for routers.
+    let mut cfg: WristTrackerConfig =
+        parse_toml("[bus.zenoh]\nhardware_interfaces = [\"lo\", \"172.30.1.0/99\"]\n").unwrap();
+    let err = teleop_node::config::validate_all(&mut cfg).unwrap_err();
+    assert!(
+        err.contains("hardware_interfaces") && err.contains("172.30.1.0/99"),
+        "{err}"
+    );
     let cfg: WristTrackerConfig = parse_toml("pose_rate_hz = -1.0\n").unwrap();
     assert!(cfg.validate().unwrap_err().contains("pose_rate_hz"));
 }

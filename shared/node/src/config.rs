@@ -23,16 +23,24 @@ pub trait NodeConfig: Serialize + DeserializeOwned + Default {
     const IS_ROUTER: bool = false;
 }
 
-/// [`NodeConfig::validate`], and a node's Zenoh mode must be `peer` or `client`.
+/// [`NodeConfig::validate`], and what every config's bus must satisfy: a node's Zenoh
+/// mode is `peer` or `client`, and each `hardware_interfaces` entry is an interface
+/// name or a well-formed subnet (subnets are resolved to this host's interfaces when
+/// the session opens: a site's config is checked on machines that are not on that
+/// site).
 ///
 /// # Errors
 /// A text naming the offending field.
 pub fn validate_all<C: NodeConfig>(cfg: &mut C) -> Result<(), String> {
-    if !C::IS_ROUTER && cfg.bus_mut().zenoh.mode == teleop_bus::Mode::Router {
+    let zenoh = &cfg.bus_mut().zenoh;
+    if !C::IS_ROUTER && zenoh.mode == teleop_bus::Mode::Router {
         return Err(
             "bus.zenoh.mode = \"router\" is for `teleop router`, not a node: use \"peer\" or \"client\""
                 .into(),
         );
+    }
+    for entry in &zenoh.hardware_interfaces {
+        teleop_bus::config::parse_subnet(entry).map_err(|e| format!("bus.zenoh.{e}"))?;
     }
     cfg.validate()
 }
