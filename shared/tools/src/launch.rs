@@ -27,7 +27,7 @@ use tokio::process::{Child, Command};
 
 use crate::report::Recorder;
 
-use crate::record::counter;
+use crate::record::reports_task_done;
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct LaunchArgs {
@@ -325,10 +325,7 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         loop {
             while let Some(r) = status.try_recv() {
                 // With a task run once: stop 1 s after the simulator reports it done.
-                if run_once
-                    && r.msg.node_name == "local_sim"
-                    && counter(&r.msg, "sim.task_repetitions").is_some_and(|n| n >= 1)
-                {
+                if run_once && reports_task_done(&r.msg) {
                     done_since.get_or_insert_with(tokio::time::Instant::now);
                 }
                 log.record(r.msg);

@@ -38,8 +38,14 @@ pub struct ReportArgs {
     pub report_dir: PathBuf,
 }
 
+/// Whether `s` is the operator-site simulator saying its task has run once (`teleop
+/// launch --task` and `teleop report --until-task-done` stop 1 s after it).
+pub fn reports_task_done(s: &NodeStatus) -> bool {
+    s.node_name == LOCAL_SIM && counter(s, "sim.task_repetitions").is_some_and(|n| n >= 1)
+}
+
 /// A counter of a status, by name.
-pub fn counter(s: &NodeStatus, name: &str) -> Option<u64> {
+fn counter(s: &NodeStatus, name: &str) -> Option<u64> {
     s.counter_names
         .iter()
         .position(|n| n == name)
@@ -70,9 +76,7 @@ pub async fn run(args: ReportArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
                     tracing::info!("operator-site simulator seen");
                 }
                 seen_sim = true;
-                if args.until_task_done
-                    && counter(&r.msg, "sim.task_repetitions").is_some_and(|n| n >= 1)
-                {
+                if args.until_task_done && reports_task_done(&r.msg) {
                     done_since.get_or_insert_with(tokio::time::Instant::now);
                 }
             }

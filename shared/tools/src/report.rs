@@ -610,7 +610,6 @@ impl Recorder {
 }
 
 impl RunReport {
-    /// The report as text.
     /// Writes `report.json` and `report.png` into `dir` (created if missing) and says
     /// so; a plot that cannot be drawn is reported, not an error.
     ///
@@ -638,6 +637,7 @@ impl RunReport {
         }
     }
 
+    /// The report as text.
     #[must_use]
     pub fn text(&self) -> String {
         use std::fmt::Write;
