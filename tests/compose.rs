@@ -1,9 +1,11 @@
 //! The multi-host deployment's files agree with the node table and with each other:
 //! every node of the table runs in one container of `deploy/compose/docker-compose.yml`
-//! with its machine's config, on its site's LAN, a client of its site's router; only
-//! the routers and the link emulator between them join the WAN; the image scripts ship
-//! every binary. (The compose
-//! system itself runs in `deploy/compose/test.sh`, which CI runs.)
+//! with its machine's config, on its site's LAN, a client of its site's router over
+//! mutual TLS with its own identity; only the routers and the link emulator between
+//! them join the WAN; the routers enforce access control for their site; the
+//! certificate script certifies every identity at the addresses the configs dial; the
+//! image scripts ship every binary. (The compose system itself runs in
+//! `deploy/compose/test.sh`, which CI runs.)
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use teleop_bus::Mode;
@@ -54,8 +56,8 @@ fn every_node_runs_in_one_container_of_its_machine_on_its_site() {
     let c = compose();
     let services = c["services"].as_mapping().unwrap();
     let router_of = |site: Site| match site {
-        Site::Local => ("local_lan", "tcp/172.30.1.2:7447"),
-        Site::Remote => ("remote_lan", "tcp/172.30.2.2:7447"),
+        Site::Local => ("local_lan", "tls/172.30.1.2:7447"),
+        Site::Remote => ("remote_lan", "tls/172.30.2.2:7447"),
     };
     for node in NODES {
         let running: Vec<(&serde_yaml::Value, Vec<String>)> = services
@@ -85,6 +87,77 @@ fn every_node_runs_in_one_container_of_its_machine_on_its_site() {
         assert_eq!(bus.zenoh.connect, [router], "{}", node.name);
         assert!(bus.zenoh.listen.is_empty(), "{}", node.name);
         assert!(!bus.zenoh.multicast_scouting, "{}", node.name);
+        let tls = bus
+            .zenoh
+            .tls
+            .as_ref()
+            .unwrap_or_else(|| panic!("{}: no TLS", node.name));
+        assert_eq!(
+            tls.certificate,
+            std::path::Path::new(&format!("/etc/teleop-certs/{}.pem", node.name)),
+            "{}: a node's identity is its name",
+            node.name
+        );
+    }
+}
+
+/// The identities `make-certs.sh` certifies: name -> subject alternative names.
+fn certified() -> std::collections::BTreeMap<String, Vec<String>> {
+    let text = std::fs::read_to_string(repo_root().join("deploy/compose/make-certs.sh")).unwrap();
+    let args = text.split("--days").nth(1).unwrap();
+    args.split_whitespace()
+        .filter(|w| !w.starts_with('"') && *w != "\\")
+        .map(|w| match w.split_once('=') {
+            Some((name, sans)) => (
+                name.to_owned(),
+                sans.split(',').map(str::to_owned).collect(),
+            ),
+            None => (w.to_owned(), Vec::new()),
+        })
+        .collect()
+}
+
+#[test]
+fn every_identity_is_certified_at_the_addresses_it_is_dialled_at() {
+    let ids = certified();
+    for node in NODES {
+        assert!(
+            ids.contains_key(node.name),
+            "make-certs.sh does not certify {}",
+            node.name
+        );
+    }
+    assert!(ids["local-router"].contains(&"172.30.1.2".to_owned()));
+    for san in ["172.30.2.2", "remote-site.wan"] {
+        assert!(ids["remote-router"].contains(&san.to_owned()), "{san}");
+    }
+    for (router, site, peer) in [
+        (
+            "local-router",
+            teleop_node::access::SiteName::Local,
+            "remote-router",
+        ),
+        (
+            "remote-router",
+            teleop_node::access::SiteName::Remote,
+            "local-router",
+        ),
+    ] {
+        let path = repo_root().join(format!("deploy/compose/config/{router}/router.toml"));
+        let cfg: teleop_node::router::RouterConfig =
+            teleop_node::config::load_checked(&path).unwrap();
+        assert!(cfg.access.enabled, "{router}: access control off");
+        assert_eq!(cfg.access.site, site, "{router}");
+        assert_eq!(cfg.access.peer_routers, [peer], "{router}");
+        for observer in &cfg.access.observers {
+            assert!(ids.contains_key(observer), "{observer} is not certified");
+        }
+        let tls = cfg.bus.zenoh.tls.as_ref().unwrap();
+        assert_eq!(
+            tls.certificate,
+            std::path::Path::new(&format!("/etc/teleop-certs/{router}.pem"))
+        );
+        assert!(cfg.bus.zenoh.listen.iter().all(|e| e.starts_with("tls/")));
     }
 }
 
@@ -106,8 +179,14 @@ fn only_the_routers_and_the_link_emulator_join_the_wan_and_hardware_stays_off_it
         &repo_root().join("deploy/compose/config/local-router/router.toml"),
     )
     .unwrap();
-    assert_eq!(local.bus.zenoh.connect, ["tcp/172.30.8.3:7447"]);
-    let link = strings(&services[&serde_yaml::Value::from("wan-link")]["command"]);
+    // The local router dials the remote site by name; on the WAN that name is the
+    // link emulator, which listens on the address it forwards from.
+    assert_eq!(local.bus.zenoh.connect, ["tls/remote-site.wan:7447"]);
+    let wan_link = &services[&serde_yaml::Value::from("wan-link")];
+    let on_wan = &wan_link["networks"]["wan_local"];
+    assert_eq!(strings(&on_wan["aliases"]), ["remote-site.wan"]);
+    assert_eq!(on_wan["ipv4_address"].as_str(), Some("172.30.8.3"));
+    let link = strings(&wan_link["command"]);
     let arg = |name: &str| {
         let i = link.iter().position(|a| a == name).unwrap();
         link[i + 1].clone()

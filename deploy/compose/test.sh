@@ -41,8 +41,10 @@ if ! docker info >/dev/null 2>&1 || [[ ${#COMPOSE[@]} == 0 ]]; then
 fi
 
 export COMPOSE_PROJECT_NAME=teleoptest$$
-export TELEOP_REPORT_DIR
+export TELEOP_REPORT_DIR TELEOP_CERTS
 TELEOP_REPORT_DIR=$(mktemp -d /tmp/teleop-compose-report.XXXXXX)
+# The deployment's certificates: made by the compose file's one-shot `certs` service.
+TELEOP_CERTS=$TELEOP_REPORT_DIR/certs
 compose() { "${COMPOSE[@]}" -f "$HERE/docker-compose.yml" "$@"; }
 teardown() {
   compose --profile report down -v --remove-orphans --timeout 15 >/dev/null 2>&1 || true
@@ -88,10 +90,13 @@ python3 "$HERE/check_report.py" "$TELEOP_REPORT_DIR/report.json"
 # encoders, one on the operator's LAN (through its router, across the wan) does not,
 # though it hears the PR2's joint states that the feedback publisher sends across.
 IMAGE=${TELEOP_IMAGE:-teleop:local}
+# Probes run as the deployment's observer identity (may watch, never publish).
+OBSERVER=(--tls-ca /certs/ca.pem --tls-cert /certs/teleop-observer.pem
+  --tls-key /certs/teleop-observer.key)
 samples() { # network router-address topic
-  docker run --rm --network "${COMPOSE_PROJECT_NAME}_$1" "$IMAGE" teleop --mode client \
-    --connect "tcp/$2:7447" --no-multicast-scouting --hardware-interface '*' \
-    topic echo "$3" --format json -n 20 --duration-s 4 2>/dev/null |
+  docker run --rm --network "${COMPOSE_PROJECT_NAME}_$1" -v "$TELEOP_CERTS:/certs:ro" "$IMAGE" \
+    teleop --mode client --connect "tls/$2:7447" --no-multicast-scouting "${OBSERVER[@]}" \
+    --hardware-interface '*' topic echo "$3" --format json -n 20 --duration-s 4 2>/dev/null |
     grep -c '"position"' || true
 }
 hw_robot=$(samples remote_lan 172.30.2.2 /teleop/hw/pr2_arm/state)
@@ -134,8 +139,9 @@ fi
 cut_test() { # name cut-command restore-command [--released-late]
   local name=$1 cut=$2 restore=$3 flag=${4:-}
   docker run -d --rm --label "com.docker.compose.project=$COMPOSE_PROJECT_NAME" \
-    --network "${COMPOSE_PROJECT_NAME}_remote_lan" -v "$TELEOP_REPORT_DIR:/out" "$IMAGE" sh -c "
-      z='--mode client --connect tcp/172.30.2.2:7447 --no-multicast-scouting'
+    --network "${COMPOSE_PROJECT_NAME}_remote_lan" -v "$TELEOP_REPORT_DIR:/out" \
+    -v "$TELEOP_CERTS:/certs:ro" "$IMAGE" sh -c "
+      z='--mode client --connect tls/172.30.2.2:7447 --no-multicast-scouting ${OBSERVER[*]}'
       teleop \$z topic echo /teleop/wrist_pose --format json --duration-s 16 >/out/$name-wrist.jsonl &
       teleop \$z topic echo /teleop/status --format json --duration-s 16 >/out/$name-status.jsonl
       wait" >"$TELEOP_REPORT_DIR/probe.id"
@@ -155,6 +161,10 @@ cut_test() { # name cut-command restore-command [--released-late]
 }
 cut_test partition "link partition on" "link partition off" --released-late
 cut_test pause "compose pause pc1-wrist-tracker" "compose unpause pc1-wrist-tracker"
+
+# Security between the sites: who cannot connect, who cannot command, what the robot
+# site refuses from the operator's own identity (check_security.sh).
+bash "$HERE/check_security.sh"
 
 teardown
 trap - EXIT

@@ -61,6 +61,14 @@ impl NodeConfig for ArmNodeConfig {
 
 pub use teleop_hardware::wire::isometry;
 
+/// Whether every number of `pose` is finite.
+fn pose_is_finite(pose: &teleop_msgs::Pose) -> bool {
+    let (p, q) = (&pose.position, &pose.orientation);
+    [p.x, p.y, p.z, q.x, q.y, q.z, q.w]
+        .iter()
+        .all(|v| v.is_finite())
+}
+
 /// The node: its subscriptions, the arm, the controller core.
 #[derive(Debug)]
 pub struct ArmNode {
@@ -75,6 +83,8 @@ pub struct ArmNode {
     operator: Option<OperatorSample>,
     hardware_errors: u64,
     rejected_frame_ids: u64,
+    /// Wrist poses refused at receipt for a NaN or infinite value.
+    rejected_non_finite: u64,
     hardware_ok: bool,
     last_error: String,
 }
@@ -105,6 +115,7 @@ impl ArmNode {
             operator: None,
             hardware_errors: 0,
             rejected_frame_ids: 0,
+            rejected_non_finite: 0,
             hardware_ok: false,
             last_error: String::new(),
         })
@@ -130,7 +141,13 @@ impl Node for ArmNode {
         }
         if let Some(r) = self.wrist_sub.poll() {
             let cfg = self.ctrl.config();
-            if cfg.mode == ArmMode::Absolute && r.msg.header.frame_id != cfg.absolute.frame_id {
+            if !pose_is_finite(&r.msg.pose) {
+                // Refused at receipt, engaged or not: it never becomes the newest pose.
+                self.rejected_non_finite += 1;
+                self.last_error = "wrist pose with a NaN or infinite value refused".into();
+            } else if cfg.mode == ArmMode::Absolute
+                && r.msg.header.frame_id != cfg.absolute.frame_id
+            {
                 // An absolute target in another frame would put the arm somewhere else.
                 self.rejected_frame_ids += 1;
                 self.last_error = format!(
@@ -209,6 +226,18 @@ impl Node for ArmNode {
 
     fn counters(&self) -> Vec<(String, u64)> {
         let mut counters = self.ctrl.named_counters();
+        // One counter of non-finite poses: refused at receipt here, or by the
+        // controller's filter (which no longer sees them from the network).
+        match counters
+            .iter_mut()
+            .find(|(n, _)| n == "wrist_pose.rejected_non_finite")
+        {
+            Some((_, v)) => *v += self.rejected_non_finite,
+            None => counters.push((
+                "wrist_pose.rejected_non_finite".into(),
+                self.rejected_non_finite,
+            )),
+        }
         counters.push(("arm.hardware_errors".into(), self.hardware_errors));
         counters.push((
             "wrist_pose.rejected_frame_id".into(),

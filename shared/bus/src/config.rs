@@ -56,6 +56,25 @@ pub struct ZenohSettings {
     /// subnet one of the interface's addresses is in (`172.30.2.0/24`: robust where
     /// interface names are not, as in containers); `["*"]` lifts the restriction.
     pub hardware_interfaces: Vec<String>,
+    /// Mutual TLS: this process's certificate and key, and the certificate authority
+    /// every peer's certificate must be signed by. With it, every endpoint must be a
+    /// `tls/` one (a plain `tcp/` endpoint beside TLS ones is refused), the peer must
+    /// present a certificate of the same authority, and a router's access control
+    /// knows the peer by the certificate's common name (docs/security.md).
+    pub tls: Option<TlsSettings>,
+}
+
+/// Certificate files (PEM) of a mutually authenticated TLS session.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TlsSettings {
+    /// The certificate authority that signs every certificate of the deployment.
+    pub ca_certificate: PathBuf,
+    /// This process's certificate; its common name is its identity (a node's is the
+    /// node's name, a router's its site's router name).
+    pub certificate: PathBuf,
+    /// The private key of `certificate`.
+    pub private_key: PathBuf,
 }
 
 impl Default for ZenohSettings {
@@ -68,6 +87,7 @@ impl Default for ZenohSettings {
             multicast_interface: "lo".into(),
             config_file: None,
             hardware_interfaces: vec!["lo".into()],
+            tls: None,
         }
     }
 }
@@ -118,6 +138,11 @@ pub enum ConfigError {
     Zenoh { key: String, message: String },
     #[error("hardware_interfaces: {0}")]
     HardwareInterfaces(String),
+    #[error("tls.{field}: {message}")]
+    Tls {
+        field: &'static str,
+        message: String,
+    },
 }
 
 impl ZenohSettings {
@@ -158,11 +183,62 @@ impl ZenohSettings {
         // (docs/benchmarks.md, bus section). Memory cost: up to 1 MiB per link.
         set("transport/link/tx/queue/size/data_low", "16".into())?;
         set("transport/link/rx/buffer_size", "1048576".into())?;
+        if let Some(tls) = &self.tls {
+            tls.check_endpoints(&self.connect, &self.listen)?;
+            let ca = tls.file("ca_certificate", &tls.ca_certificate)?;
+            let cert = tls.file("certificate", &tls.certificate)?;
+            let key = tls.file("private_key", &tls.private_key)?;
+            set("transport/link/tls/root_ca_certificate", json_string(&ca))?;
+            set("transport/link/tls/listen_certificate", json_string(&cert))?;
+            set("transport/link/tls/listen_private_key", json_string(&key))?;
+            set("transport/link/tls/connect_certificate", json_string(&cert))?;
+            set("transport/link/tls/connect_private_key", json_string(&key))?;
+            set("transport/link/tls/enable_mtls", "true".into())?;
+            set("transport/link/tls/verify_name_on_connect", "true".into())?;
+        }
         let allowed = resolve_interfaces(&self.hardware_interfaces, &host_addresses())?;
         if let Some(acl) = hardware_acl(&allowed, &host_interfaces()) {
             set("access_control", acl.to_string())?;
         }
         Ok(cfg)
+    }
+}
+
+impl TlsSettings {
+    /// `path` as Zenoh takes it, after checking that it is a readable PEM file.
+    fn file(&self, field: &'static str, path: &std::path::Path) -> Result<String, ConfigError> {
+        let bad = |message: String| ConfigError::Tls { field, message };
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| bad(format!("cannot read {}: {e}", path.display())))?;
+        if !text.contains("-----BEGIN ") {
+            return Err(bad(format!("{} is not a PEM file", path.display())));
+        }
+        path.to_str()
+            .map(str::to_owned)
+            .ok_or_else(|| bad(format!("{} is not valid UTF-8", path.display())))
+    }
+
+    /// Every endpoint must be a TLS one: a plain TCP endpoint beside them would accept
+    /// peers without a certificate.
+    ///
+    /// # Errors
+    /// [`ConfigError::Tls`] naming the first endpoint that is not `tls/...`.
+    pub fn check_endpoints(
+        &self,
+        connect: &[String],
+        listen: &[String],
+    ) -> Result<(), ConfigError> {
+        for (field, list) in [("connect", connect), ("listen", listen)] {
+            if let Some(e) = list.iter().find(|e| !e.starts_with("tls/")) {
+                return Err(ConfigError::Tls {
+                    field: "endpoints",
+                    message: format!(
+                        "`{e}` in {field} is not a tls/ endpoint; with TLS set every endpoint must be one"
+                    ),
+                });
+            }
+        }
+        Ok(())
     }
 }
 

@@ -26,7 +26,7 @@ pub mod testing;
 
 pub use attachment::Attachment;
 pub use clock::{Clock, ManualClock, ScaledClock, SystemClock};
-pub use config::{BusConfig, Mode, TimeScale, ZenohSettings};
+pub use config::{BusConfig, Mode, TimeScale, TlsSettings, ZenohSettings};
 pub use directory::{PublisherDirectory, PublisherInfo};
 pub use session::{
     Bus, BusError, NodeEvent, NodeWatch, Publisher, Received, SeenPublisher, SourcePolicy,

@@ -18,4 +18,4 @@ pub mod topics;
 
 pub use hardware::{ArmInterface, HandInterface};
 pub use nodes::{NodeSpec, Site};
-pub use topics::{Direction, QosClass, Topic, TopicSpec};
+pub use topics::{Direction, Publishers, QosClass, Topic, TopicSpec};

@@ -86,6 +86,27 @@ impl QosClass {
     }
 }
 
+/// Which nodes may publish a topic: the access control between and within the sites
+/// is generated from this (`teleop_node::access`), and a system test checks it against
+/// what the running nodes announce.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Publishers {
+    /// Only these nodes (by node name, as in [`crate::nodes::NODES`]).
+    Nodes(&'static [&'static str]),
+    /// Every node of either site (e.g. the node status).
+    EveryNode,
+}
+
+impl Publishers {
+    /// Whether `node` may publish the topic.
+    pub fn includes(self, node: &str) -> bool {
+        match self {
+            Publishers::Nodes(names) => names.contains(&node),
+            Publishers::EveryNode => true,
+        }
+    }
+}
+
 /// The untyped description of a topic.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TopicSpec {
@@ -102,6 +123,8 @@ pub struct TopicSpec {
     /// Default maximum age of an accepted sample (source timestamp to receipt), in
     /// milliseconds; `None` for no deadline. Nodes may override it in their config.
     pub deadline_ms: Option<u64>,
+    /// The nodes that publish it (and the only ones the sites' routers let publish it).
+    pub publishers: Publishers,
     /// What the topic carries.
     pub doc: &'static str,
 }
@@ -127,6 +150,7 @@ impl<T: Message> Topic<T> {
         rate_hz: f64,
         qos: QosClass,
         deadline_ms: Option<u64>,
+        publishers: Publishers,
         doc: &'static str,
     ) -> Self {
         Self {
@@ -138,6 +162,7 @@ impl<T: Message> Topic<T> {
                 rate_hz,
                 qos,
                 deadline_ms,
+                publishers,
                 doc,
             },
             _type: PhantomData,
@@ -174,6 +199,7 @@ pub const WRIST_POSE: Topic<PoseStamped> = Topic::new(
     320.0,
     Q::Control,
     Some(100),
+    Publishers::Nodes(&["wrist_tracker"]),
     "Operator hand frame (Fig. 3.6) in the UR5 base frame, registered and jump-filtered, stamped with the capture time; drives the PR2 arm through the clutch and the camera arm",
 );
 /// Shadow hand finger joint targets from hand inference.
@@ -183,6 +209,7 @@ pub const HAND_JOINT_TARGETS: Topic<JointState> = Topic::new(
     30.0,
     Q::Control,
     Some(200),
+    Publishers::Nodes(&["hand_inference"]),
     "17 Shadow finger joint targets (rad) inferred from the operator's hand depth image",
 );
 /// Pedals and switches.
@@ -192,6 +219,7 @@ pub const OPERATOR_INPUT: Topic<OperatorInput> = Topic::new(
     50.0,
     Q::Control,
     Some(100),
+    Publishers::Nodes(&["wrist_tracker"]),
     "Clutch pedal, enable (deadman) switch, camera-arm stop pedal, motion scale",
 );
 /// PR2 arm joint states.
@@ -201,6 +229,7 @@ pub const PR2_JOINT_STATES: Topic<JointState> = Topic::new(
     100.0,
     Q::State,
     Some(500),
+    Publishers::Nodes(&["feedback_publisher"]),
     "PR2 arm chain joint positions/velocities (5 PR2 arm joints + 2 Shadow wrist joints)",
 );
 /// Shadow hand joint states.
@@ -210,6 +239,7 @@ pub const SHADOW_JOINT_STATES: Topic<JointState> = Topic::new(
     100.0,
     Q::State,
     Some(500),
+    Publishers::Nodes(&["feedback_publisher"]),
     "Shadow hand finger joint positions/velocities/efforts (17 joints; J1s fixed by the BioTacs)",
 );
 /// Fingertip pressures.
@@ -219,6 +249,7 @@ pub const FINGERTIP_PRESSURES: Topic<FingertipPressures> = Topic::new(
     100.0,
     Q::State,
     Some(500),
+    Publishers::Nodes(&["feedback_publisher"]),
     "Five BioTac-like fingertip contact forces (N)",
 );
 /// Remote camera, top view.
@@ -228,6 +259,7 @@ pub const REMOTE_CAMERA_TOP: Topic<Image> = Topic::new(
     15.0,
     Q::Image,
     None,
+    Publishers::Nodes(&["feedback_publisher"]),
     "Top view of the robot's workspace (rgb8), rate-limited",
 );
 /// Remote camera, side view.
@@ -244,6 +276,7 @@ pub const HAND_DEPTH: Topic<Image> = Topic::new(
     30.0,
     Q::Image,
     None,
+    Publishers::Nodes(&["local_sim"]),
     "Depth camera hardware: the operator's hand (16UC1, mm, SR300 640x480), stamped with the capture time",
 );
 /// Where the depth camera is: its optical frame in the UR5 base frame, computed by the
@@ -255,6 +288,7 @@ pub const CAMERA_POSE: Topic<PoseStamped> = Topic::new(
     30.0,
     Q::State,
     Some(500),
+    Publishers::Nodes(&["camera_arm"]),
     "Depth camera optical frame in the UR5 base frame (FK of the measured UR5 joints, stamped with their time)",
 );
 /// Raw motion-capture reading of the marker on the back of the operator's hand.
@@ -264,6 +298,7 @@ pub const HW_MOCAP_MARKER: Topic<PoseStamped> = Topic::new(
     320.0,
     Q::State,
     Some(100),
+    Publishers::Nodes(&["local_sim"]),
     "Motion capture hardware: the hand-back marker's 6D pose in the tracker's own frame (PhaseSpace-like, 320 Hz); none while occluded",
 );
 /// The pedal box and the enable switch, as their driver reads them.
@@ -273,6 +308,7 @@ pub const HW_PEDALS: Topic<OperatorInput> = Topic::new(
     50.0,
     Q::Control,
     Some(100),
+    Publishers::Nodes(&["local_sim"]),
     "Pedal box hardware: clutch (right), camera stop (left), enable switch, motion scale",
 );
 /// Simulation ground truth: the operator's true hand frame (Fig. 3.6).
@@ -282,6 +318,7 @@ pub const SIM_OPERATOR_HAND_POSE: Topic<PoseStamped> = Topic::new(
     100.0,
     Q::State,
     None,
+    Publishers::Nodes(&["local_sim"]),
     "Simulation ground truth: the operator's true hand frame (Fig. 3.6) in the UR5 base frame",
 );
 /// Simulation ground truth: the operator's fingers retargeted to the Shadow hand.
@@ -291,6 +328,7 @@ pub const SIM_OPERATOR_SHADOW_JOINTS: Topic<JointState> = Topic::new(
     30.0,
     Q::State,
     None,
+    Publishers::Nodes(&["local_sim"]),
     "Simulation ground truth: the operator's true finger posture retargeted to the 17 Shadow finger joints (rad)",
 );
 /// UR5 joint states.
@@ -300,6 +338,7 @@ pub const UR5_JOINT_STATES: Topic<JointState> = Topic::new(
     100.0,
     Q::State,
     Some(500),
+    Publishers::Nodes(&["camera_arm"]),
     "UR5 camera-arm joint states",
 );
 /// Status of every node.
@@ -309,6 +348,7 @@ pub const NODE_STATUS: Topic<NodeStatus> = Topic::new(
     1.0,
     Q::Diagnostics,
     None,
+    Publishers::EveryNode,
     "Lifecycle state, rejected-input counters and last error of each node",
 );
 
@@ -320,6 +360,7 @@ pub const HW_PR2_ARM_STATE: Topic<JointState> = Topic::new(
     250.0,
     Q::State,
     Some(100),
+    Publishers::Nodes(&["remote_sim"]),
     "Arm hardware state: 7 joints (5 PR2 arm + 2 Shadow wrist), position and velocity",
 );
 /// Joint velocity command to the arm hardware.
@@ -329,6 +370,7 @@ pub const HW_PR2_ARM_COMMAND: Topic<JointState> = Topic::new(
     30.0,
     Q::Control,
     Some(100),
+    Publishers::Nodes(&["pr2_arm_controller"]),
     "Arm hardware command: 7 joint velocities (rad/s); the hardware stops on its own if commands stop",
 );
 /// Hand hardware state.
@@ -338,6 +380,7 @@ pub const HW_HAND_STATE: Topic<JointState> = Topic::new(
     250.0,
     Q::State,
     Some(100),
+    Publishers::Nodes(&["remote_sim"]),
     "Hand hardware state: 17 finger joints, position, velocity and effort",
 );
 /// Hand hardware tactile readings.
@@ -347,6 +390,7 @@ pub const HW_HAND_TACTILE: Topic<FingertipPressures> = Topic::new(
     250.0,
     Q::State,
     Some(100),
+    Publishers::Nodes(&["remote_sim"]),
     "Hand hardware fingertip sensors (N)",
 );
 /// Hand hardware command.
@@ -356,6 +400,7 @@ pub const HW_HAND_COMMAND: Topic<JointState> = Topic::new(
     500.0,
     Q::Control,
     Some(100),
+    Publishers::Nodes(&["shadow_hand_controller"]),
     "Hand hardware command: 17 finger joints, either `effort` (N m) or `position` (rad)",
 );
 
@@ -367,6 +412,7 @@ pub const HW_UR5_STATE: Topic<JointState> = Topic::new(
     250.0,
     Q::State,
     Some(100),
+    Publishers::Nodes(&["local_sim"]),
     "Camera-arm hardware state: 6 UR5 joints, position and velocity",
 );
 /// Joint velocity command to the UR5 hardware.
@@ -376,6 +422,7 @@ pub const HW_UR5_COMMAND: Topic<JointState> = Topic::new(
     30.0,
     Q::Control,
     Some(100),
+    Publishers::Nodes(&["camera_arm"]),
     "Camera-arm hardware command: 6 joint velocities (rad/s); the hardware stops on its own if commands stop",
 );
 
@@ -387,6 +434,7 @@ pub const HW_CAMERA_TOP: Topic<Image> = Topic::new(
     15.0,
     Q::Image,
     None,
+    Publishers::Nodes(&["remote_sim"]),
     "Camera hardware, top view of the workspace (rgb8); forwarded rate-limited by the feedback publisher",
 );
 /// Camera hardware, side view.
@@ -442,20 +490,29 @@ pub fn find(name: &str) -> Option<&'static TopicSpec> {
 /// The Markdown table of [`ALL`], as it appears in `docs/topics.md`.
 pub fn markdown_table() -> String {
     let mut out = String::from(
-        "| topic | type | direction | rate | QoS | deadline | carries |\n|---|---|---|---|---|---|---|\n",
+        "| topic | type | direction | rate | QoS | deadline | published by | carries |\n|---|---|---|---|---|---|---|---|\n",
     );
     for t in ALL {
         let deadline = t
             .deadline_ms
             .map_or_else(|| "-".to_owned(), |d| format!("{d} ms"));
+        let publishers = match t.publishers {
+            Publishers::Nodes(names) => names
+                .iter()
+                .map(|n| format!("`{n}`"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            Publishers::EveryNode => "every node".to_owned(),
+        };
         out.push_str(&format!(
-            "| `/{}` | `{}` | {} | {} Hz | {} | {} | {} |\n",
+            "| `/{}` | `{}` | {} | {} Hz | {} | {} | {} | {} |\n",
             t.name,
             t.type_name,
             t.direction.label(),
             t.rate_hz,
             t.qos.label(),
             deadline,
+            publishers,
             t.doc
         ));
     }
@@ -502,6 +559,43 @@ mod tests {
                 t.name
             );
         }
+    }
+
+    #[test]
+    fn publishers_are_nodes_of_the_site_the_topic_leaves_from() {
+        use crate::nodes::{NODES, Site};
+        for t in ALL {
+            let Publishers::Nodes(names) = t.publishers else {
+                assert_eq!(t.direction, Direction::Both, "{}", t.name);
+                continue;
+            };
+            assert!(!names.is_empty(), "{} has no publisher", t.name);
+            let site = match t.direction {
+                Direction::LocalToRemote | Direction::LocalInternal => Site::Local,
+                Direction::RemoteToLocal | Direction::RemoteInternal => Site::Remote,
+                Direction::Both => panic!("{}: a topic of both sites is every node's", t.name),
+            };
+            for name in names {
+                let node = NODES.iter().find(|n| n.name == *name);
+                let node = node.unwrap_or_else(|| panic!("{}: no node `{name}`", t.name));
+                assert_eq!(node.site, site, "{}: `{name}` is on the other site", t.name);
+            }
+        }
+        // A hardware command topic is published by the interface's one controller.
+        use crate::hardware::{PR2_ARM, SHADOW_HAND, UR5_ARM};
+        for (command, controller) in [
+            (PR2_ARM.command, PR2_ARM.controller_node),
+            (UR5_ARM.command, UR5_ARM.controller_node),
+            (SHADOW_HAND.command, SHADOW_HAND.controller_node),
+        ] {
+            let Publishers::Nodes(names) = command.spec.publishers else {
+                panic!("{}: every node publishes it", command.spec.name);
+            };
+            assert_eq!(names, [controller], "{}", command.spec.name);
+        }
+        assert!(WRIST_POSE.spec.publishers.includes("wrist_tracker"));
+        assert!(!WRIST_POSE.spec.publishers.includes("hand_inference"));
+        assert!(NODE_STATUS.spec.publishers.includes("anyone"));
     }
 
     #[test]

@@ -60,6 +60,16 @@ pub struct ZenohArgs {
     /// when the process starts; a launcher passes its own to every node).
     #[arg(long, requires = "time_scale")]
     pub time_origin_ns: Option<i64>,
+    /// Mutual TLS: the certificate authority (PEM) every peer must be signed by (with
+    /// --tls-cert and --tls-key; every endpoint must then be a tls/ one).
+    #[arg(long, requires_all = ["tls_cert", "tls_key"])]
+    pub tls_ca: Option<PathBuf>,
+    /// Mutual TLS: this process's certificate (PEM); its common name is its identity.
+    #[arg(long, requires_all = ["tls_ca", "tls_key"])]
+    pub tls_cert: Option<PathBuf>,
+    /// Mutual TLS: the private key of --tls-cert (PEM).
+    #[arg(long, requires_all = ["tls_ca", "tls_cert"])]
+    pub tls_key: Option<PathBuf>,
 }
 
 fn parse_time_scale(s: &str) -> Result<f64, String> {
@@ -92,6 +102,13 @@ impl ZenohArgs {
         }
         if !self.hardware_interface.is_empty() {
             cfg.zenoh.hardware_interfaces = self.hardware_interface.clone();
+        }
+        if let (Some(ca), Some(cert), Some(key)) = (&self.tls_ca, &self.tls_cert, &self.tls_key) {
+            cfg.zenoh.tls = Some(teleop_bus::TlsSettings {
+                ca_certificate: ca.clone(),
+                certificate: cert.clone(),
+                private_key: key.clone(),
+            });
         }
         if let Some(scale) = self.time_scale {
             cfg.time = Some(teleop_bus::TimeScale {
@@ -147,6 +164,15 @@ impl ZenohArgs {
         }
         if let Some(origin) = self.time_origin_ns {
             out.extend(["--time-origin-ns".into(), origin.to_string()]);
+        }
+        for (flag, path) in [
+            ("--tls-ca", &self.tls_ca),
+            ("--tls-cert", &self.tls_cert),
+            ("--tls-key", &self.tls_key),
+        ] {
+            if let Some(p) = path {
+                out.extend([flag.into(), p.display().to_string()]);
+            }
         }
         out
     }

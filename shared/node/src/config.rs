@@ -24,8 +24,8 @@ pub trait NodeConfig: Serialize + DeserializeOwned + Default {
 }
 
 /// [`NodeConfig::validate`], and what every config's bus must satisfy: a node's Zenoh
-/// mode is `peer` or `client`, and each `hardware_interfaces` entry is an interface
-/// name or a well-formed subnet (subnets are resolved to this host's interfaces when
+/// mode is `peer` or `client`, with TLS every endpoint is a `tls/` one, and each
+/// `hardware_interfaces` entry is an interface name or a well-formed subnet (subnets are resolved to this host's interfaces when
 /// the session opens: a site's config is checked on machines that are not on that
 /// site).
 ///
@@ -41,6 +41,10 @@ pub fn validate_all<C: NodeConfig>(cfg: &mut C) -> Result<(), String> {
     }
     for entry in &zenoh.hardware_interfaces {
         teleop_bus::config::parse_subnet(entry).map_err(|e| format!("bus.zenoh.{e}"))?;
+    }
+    if let Some(tls) = &zenoh.tls {
+        tls.check_endpoints(&zenoh.connect, &zenoh.listen)
+            .map_err(|e| format!("bus.zenoh.{e}"))?;
     }
     cfg.validate()
 }

@@ -5,7 +5,10 @@
 //! SIGINT/SIGTERM, graceful shutdown that commands the hardware to stop, a final
 //! status, session closed.
 
+pub mod access;
 pub mod args;
+#[cfg(feature = "certs")]
+pub mod certs;
 pub mod config;
 pub mod latency;
 #[cfg(feature = "plot")]

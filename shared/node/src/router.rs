@@ -9,14 +9,45 @@ use serde::{Deserialize, Serialize};
 use teleop_bus::{BusConfig, Mode};
 
 use crate::NodeConfig;
+use crate::access::AccessConfig;
 
 /// The router's configuration file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RouterConfig {
     /// Only `bus.zenoh` matters to a router (mode `router`, what it listens on, which
-    /// routers it connects to, where hardware topics may go); the rest is ignored.
+    /// routers it connects to, where hardware topics may go, its TLS identity); the
+    /// rest is ignored.
     pub bus: BusConfig,
+    /// Who may publish what through this router (off by default; needs TLS).
+    pub access: AccessConfig,
+}
+
+impl RouterConfig {
+    /// The router's Zenoh configuration: the bus settings, and with `access.enabled`
+    /// the access control generated from the topic and node tables in place of the
+    /// bus's interface-only hardware rule.
+    ///
+    /// # Errors
+    /// What Zenoh or the bus settings refuse.
+    pub fn to_zenoh(&self) -> Result<zenoh::Config, teleop_bus::config::ConfigError> {
+        let z = &self.bus.zenoh;
+        let mut cfg = z.to_zenoh()?;
+        if self.access.enabled {
+            let hw = teleop_bus::config::resolve_interfaces(
+                &z.hardware_interfaces,
+                &teleop_bus::config::host_addresses(),
+            )?;
+            let acl = self.access.zenoh_acl(&hw).to_string();
+            cfg.insert_json5("access_control", &acl).map_err(|e| {
+                teleop_bus::config::ConfigError::Zenoh {
+                    key: "access_control".into(),
+                    message: e.to_string(),
+                }
+            })?;
+        }
+        Ok(cfg)
+    }
 }
 
 impl Default for RouterConfig {
@@ -25,7 +56,10 @@ impl Default for RouterConfig {
         bus.zenoh.mode = Mode::Router;
         bus.zenoh.listen = vec!["tcp/0.0.0.0:7447".into()];
         bus.zenoh.multicast_scouting = false;
-        Self { bus }
+        Self {
+            bus,
+            access: AccessConfig::default(),
+        }
     }
 }
 
@@ -47,7 +81,13 @@ impl NodeConfig for RouterConfig {
         if z.listen.is_empty() {
             return Err("bus.zenoh.listen must name at least one endpoint".into());
         }
-        Ok(())
+        if self.access.enabled && z.tls.is_none() {
+            return Err(
+                "access.enabled needs [bus.zenoh.tls]: the router knows its peers by their certificates"
+                    .into(),
+            );
+        }
+        self.access.validate()
     }
 }
 
@@ -74,5 +114,12 @@ mod tests {
         let e = crate::config::parse_toml::<RouterConfig>("[bus.zenoh]\nmodee = \"router\"\n")
             .unwrap_err();
         assert!(e.contains("modee"), "{e}");
+        let mut c = RouterConfig::default();
+        c.access.enabled = true;
+        let e = c.validate().unwrap_err();
+        assert!(e.contains("access.enabled") && e.contains("tls"), "{e}");
+        let e =
+            crate::config::parse_toml::<RouterConfig>("[access]\nsite = \"moon\"\n").unwrap_err();
+        assert!(e.contains("moon"), "{e}");
     }
 }

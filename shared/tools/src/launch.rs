@@ -354,8 +354,15 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         () = collect => None,
     };
     log.drain(&status);
+    // Who publishes what, as the running nodes announce it, against the topic table
+    // (which the sites' routers enforce across machines).
+    let publishers = match bus.graph(Duration::from_millis(500)).await {
+        Ok(g) => publisher_check(&g),
+        Err(e) => format!("publishers vs the topic table: not checked ({e})"),
+    };
     let outcomes = stop_all(&mut children, args.grace_s, &status, &mut log).await;
     print_summary(&outcomes);
+    println!("{publishers}");
     let report = recorder.finish(bus.now_s(), &log.finals);
     println!();
     print!("{}", report.text());
@@ -376,6 +383,59 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         bail!("not stopped gracefully: {}", bad.join(", "));
     }
     Ok(())
+}
+
+/// The topics the running nodes of the node table publish, against the topic table's
+/// publishers: one line saying they agree, or what differs (a publisher the table does
+/// not name would be refused by the sites' routers; a table entry no node published is
+/// stale).
+pub fn publisher_check(graph: &[teleop_bus::keys::GraphEntity]) -> String {
+    use std::collections::BTreeSet;
+    use teleop_bus::keys::EntityKind;
+    let running: BTreeSet<&str> = graph
+        .iter()
+        .filter(|e| e.kind == EntityKind::Node)
+        .map(|e| e.node_name.as_str())
+        .filter(|n| NODES.iter().any(|s| s.name == *n))
+        .collect();
+    let seen: BTreeSet<(String, String)> = graph
+        .iter()
+        .filter(|e| e.kind == EntityKind::Publisher && running.contains(e.node_name.as_str()))
+        .filter_map(|e| {
+            Some((
+                e.topic.as_deref()?.trim_matches('/').to_owned(),
+                e.node_name.clone(),
+            ))
+        })
+        .collect();
+    let unlisted: Vec<String> = seen
+        .iter()
+        .filter(|(t, n)| !topics::find(t).is_some_and(|spec| spec.publishers.includes(n)))
+        .map(|(t, n)| format!("{n} -> /{t}"))
+        .collect();
+    let mut missing = Vec::new();
+    for t in topics::ALL {
+        if let topics::Publishers::Nodes(names) = t.publishers {
+            for n in names.iter().filter(|n| running.contains(*n)) {
+                if !seen.contains(&(t.name.to_owned(), (*n).to_owned())) {
+                    missing.push(format!("{n} -> /{}", t.name));
+                }
+            }
+        }
+    }
+    if unlisted.is_empty() && missing.is_empty() {
+        format!(
+            "publishers vs the topic table: all {} publications of the {} running nodes are in the table, and every one the table names for them was seen",
+            seen.len(),
+            running.len()
+        )
+    } else {
+        format!(
+            "publishers vs the topic table: DIFFER: not in the table (routers would refuse): [{}]; in the table but not published: [{}]",
+            unlisted.join(", "),
+            missing.join(", ")
+        )
+    }
 }
 
 /// SIGINT to each node in the node table's stop order, wait up to `grace_s`, then

@@ -1,8 +1,10 @@
 //! `teleop`: the command-line tool to inspect a running system, in the spirit of
 //! `ros2 topic` / `ros2 node`, and to launch the whole system on one machine.
 
+mod certs;
 mod inspect;
 mod launch;
+mod publish;
 mod record;
 mod report;
 mod router;
@@ -50,6 +52,8 @@ enum Command {
     /// Record the end-of-run report of a running system (started by someone else:
     /// docker compose, several machines).
     Report(record::ReportArgs),
+    /// Make a certificate authority and certificates for mutual TLS between the sites.
+    Certs(certs::CertsArgs),
 }
 
 #[derive(Debug, Subcommand)]
@@ -73,6 +77,8 @@ enum TopicCommand {
         #[arg(long)]
         duration_s: Option<f64>,
     },
+    /// Publish samples of a topic (like `ros2 topic pub`; with fault-injection options).
+    Pub(publish::PubArgs),
     /// Rate, latency and drops of a topic, every second.
     Hz {
         topic: String,
@@ -112,6 +118,7 @@ async fn main() -> anyhow::Result<()> {
             count,
             duration_s,
         }) => inspect::echo(&bus_cfg, &topic, format, count, duration_s).await,
+        Command::Topic(TopicCommand::Pub(args)) => publish::run(&bus_cfg, &args).await,
         Command::Topic(TopicCommand::Hz { topic, duration_s }) => {
             inspect::monitor(&bus_cfg, Some(&topic), duration_s).await
         }
@@ -120,5 +127,6 @@ async fn main() -> anyhow::Result<()> {
         Command::Launch(args) => launch::launch(args, &cli.zenoh).await,
         Command::Router(args) => router::run(args, &cli.zenoh).await,
         Command::Report(args) => record::run(args, &cli.zenoh).await,
+        Command::Certs(args) => certs::run(args),
     }
 }

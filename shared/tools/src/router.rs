@@ -32,7 +32,7 @@ pub async fn run(args: RouterArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
     };
     let duration = node_args.duration()?;
     let z = &cfg.bus.zenoh;
-    let session = zenoh::open(z.to_zenoh()?)
+    let session = zenoh::open(cfg.to_zenoh()?)
         .await
         .map_err(|e| anyhow::anyhow!("zenoh: opening the router session: {e}"))?;
     tracing::info!(
@@ -40,6 +40,8 @@ pub async fn run(args: RouterArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         listen = ?z.listen,
         connect = ?z.connect,
         hardware_interfaces = ?z.hardware_interfaces,
+        tls = z.tls.is_some(),
+        access_control = cfg.access.enabled,
         "router running"
     );
     teleop_node::stop_signal(duration).await;

@@ -104,6 +104,16 @@ fn launch_runs_the_system_and_stops_it_gracefully_with_a_summary() {
         stdout.contains("== teleop launch: end-of-run report"),
         "{stdout}"
     );
+    // What the running nodes publish is what the topic table says (the table the
+    // sites' routers enforce): nothing more, nothing missing.
+    let check = stdout
+        .lines()
+        .find(|l| l.starts_with("publishers vs the topic table"))
+        .unwrap_or_else(|| panic!("no publisher check:\n{stdout}"));
+    assert!(
+        check.contains("are in the table") && check.contains("of the 8 running nodes"),
+        "{check}"
+    );
 }
 
 /// The shipped model's mean joint error on its offline test set (docs/hand-inference.md,
