@@ -42,7 +42,8 @@ as() {
 LOCAL=tls/172.30.1.2:7447
 REMOTE=tls/172.30.2.2:7447
 REMOTE_WAN=tls/172.30.9.2:7447
-observe() { as remote_lan "$TELEOP_CERTS" teleop-observer "$REMOTE" "$@"; }
+# On the robot site's LAN, where hardware topics may travel.
+observe() { as remote_lan "$TELEOP_CERTS" teleop-observer "$REMOTE" --hardware-interface '*' "$@"; }
 
 # The arm controller's newest counters and one arm encoder sample, to $1.json / .arm.
 snapshot() {

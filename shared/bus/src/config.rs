@@ -146,6 +146,16 @@ pub enum ConfigError {
 }
 
 impl ZenohSettings {
+    /// The endpoints this session listens on: none for a client (it only connects to
+    /// its router), `listen` otherwise.
+    pub fn listened(&self) -> &[String] {
+        if self.mode == Mode::Client {
+            &[]
+        } else {
+            &self.listen
+        }
+    }
+
     /// Builds the Zenoh configuration.
     ///
     /// # Errors
@@ -167,7 +177,7 @@ impl ZenohSettings {
         };
         set("mode", json_string(self.mode.as_str()))?;
         set("connect/endpoints", json_list(&self.connect))?;
-        if self.mode == Mode::Peer || !self.listen.is_empty() {
+        if self.mode != Mode::Client {
             set("listen/endpoints", json_list(&self.listen))?;
         }
         set(
@@ -184,7 +194,7 @@ impl ZenohSettings {
         set("transport/link/tx/queue/size/data_low", "16".into())?;
         set("transport/link/rx/buffer_size", "1048576".into())?;
         if let Some(tls) = &self.tls {
-            tls.check_endpoints(&self.connect, &self.listen)?;
+            tls.check_endpoints(&self.connect, self.listened())?;
             let ca = tls.file("ca_certificate", &tls.ca_certificate)?;
             let cert = tls.file("certificate", &tls.certificate)?;
             let key = tls.file("private_key", &tls.private_key)?;

@@ -226,6 +226,11 @@ impl NodeArgs {
         };
         self.zenoh.apply(cfg.bus_mut());
         config::validate_all(&mut cfg).map_err(ConfigError::Invalid)?;
+        crate::tls_runtime::ensure_safe_runtime(cfg.bus_mut()).map_err(|e| {
+            ConfigError::Invalid(format!(
+                "TLS: starting again with a safe zenoh runtime: {e}"
+            ))
+        })?;
         Ok(Some(cfg))
     }
 

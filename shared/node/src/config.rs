@@ -43,7 +43,7 @@ pub fn validate_all<C: NodeConfig>(cfg: &mut C) -> Result<(), String> {
         teleop_bus::config::parse_subnet(entry).map_err(|e| format!("bus.zenoh.{e}"))?;
     }
     if let Some(tls) = &zenoh.tls {
-        tls.check_endpoints(&zenoh.connect, &zenoh.listen)
+        tls.check_endpoints(&zenoh.connect, zenoh.listened())
             .map_err(|e| format!("bus.zenoh.{e}"))?;
     }
     cfg.validate()

@@ -18,6 +18,7 @@ pub mod runner;
 pub mod source;
 pub mod status;
 pub mod stop;
+pub mod tls_runtime;
 
 pub use args::{NodeArgs, ZenohArgs};
 pub use config::{ConfigError, NodeConfig};

@@ -104,6 +104,11 @@ async fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     let mut bus_cfg = teleop_bus::BusConfig::default();
     cli.zenoh.apply(&mut bus_cfg);
+    // `teleop router` checks its own configuration file.
+    if !matches!(cli.command, Command::Router(_)) {
+        teleop_node::tls_runtime::ensure_safe_runtime(&bus_cfg)
+            .map_err(|e| anyhow::anyhow!("TLS: starting again with a safe zenoh runtime: {e}"))?;
+    }
     match cli.command {
         Command::Topics { markdown } => {
             inspect::print_table(markdown);
