@@ -41,7 +41,7 @@ async fn the_arm_node_stops_on_scripted_time() {
     let stamp = |t: f64| Time::from_nanos((t * 1e9) as i64);
     // One scripted period: the peer publishes what it is told, the messages arrive
     // (real time), the clock moves by one period, the node ticks.
-    let period = |t: f64, pose_x: Option<f64>, input: bool| {
+    let period = |t: f64, pose_x: Option<f64>, input: bool, clutch: bool| {
         state_pub
             .put(&wire::arm_state_msg(
                 &PR2_ARM_JOINTS,
@@ -72,7 +72,7 @@ async fn the_arm_node_stops_on_scripted_time() {
             input_pub
                 .put(&OperatorInput {
                     header: Header::new(stamp(t), ""),
-                    clutch: true,
+                    clutch,
                     enable: true,
                     camera_stop: false,
                     motion_scale: 1.0,
@@ -80,9 +80,12 @@ async fn the_arm_node_stops_on_scripted_time() {
                 .unwrap();
         }
     };
-    // Discovery (real time), with the scripted clock standing still.
+    // Discovery (real time), with the scripted clock standing still; the operator
+    // presses the clutch once the node has heard it released (a node does not take a
+    // clutch held since before it heard it for a press).
     for _ in 0..100 {
-        period(clock.now_s(), Some(0.4), true);
+        let clutch = node.controller().armed();
+        period(clock.now_s(), Some(0.4), true, clutch);
         tokio::time::sleep(Duration::from_millis(20)).await;
         node.tick(clock.now_s());
         if node.state() == Lifecycle::Active {
@@ -96,7 +99,7 @@ async fn the_arm_node_stops_on_scripted_time() {
     for _ in 0..10 {
         clock.advance_s(DT);
         x += 0.01;
-        period(clock.now_s(), Some(x), true);
+        period(clock.now_s(), Some(x), true, true);
         tokio::time::sleep(Duration::from_millis(15)).await;
         node.tick(clock.now_s());
         while let Some(c) = commands.try_recv() {
@@ -111,7 +114,7 @@ async fn the_arm_node_stops_on_scripted_time() {
     let mut stopped_at = None;
     for _ in 0..6 {
         clock.advance_s(DT);
-        period(clock.now_s(), None, true);
+        period(clock.now_s(), None, true, true);
         tokio::time::sleep(Duration::from_millis(15)).await;
         node.tick(clock.now_s());
         // The command reaches the hardware (real time).

@@ -65,6 +65,22 @@ fn run(
     let safety = ArmSafety::new(chain.clone(), SimSafetyConfig::default().arm).unwrap();
     let mut arm = SafeArm::new(sim_arm, safety);
     let mut ctrl = ArmController::new(chain.clone(), cfg).unwrap();
+    // The controller hears the pedals released once (as at any start: a clutch held
+    // since before it started is not a press); the clutch is pressed from the first
+    // period of the run.
+    let released = ArmInputs {
+        operator: Some(OperatorSample {
+            received_s: 0.0,
+            clutch: false,
+            enable: true,
+            motion_scale: scale,
+        }),
+        wrist: None,
+        operator_site_alive: true,
+        commander_conflict: false,
+    };
+    let stopped = ctrl.step(0.0, &released, &arm.read(0.0).unwrap()).stopped;
+    assert!(stopped.is_some(), "nothing moves before the clutch");
     let mut t = 0.0;
     let mut errors = Vec::new();
     let mut refs: Option<(Isometry3<f64>, Isometry3<f64>)> = None;

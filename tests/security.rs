@@ -348,11 +348,13 @@ async fn only_the_operator_site_commands_the_robot_and_bad_commands_are_refused_
         gid,
     };
     let pose_bytes = |x: f64| teleop_msgs::encode(&pose_at(x, clock.now_ns())).unwrap();
-    // a. Clutch and enable held, NaN poses only: the arm node refuses each at receipt
+    // a. A fresh clutch press with enable held, NaN poses only: the arm node refuses each at receipt
     // (it polls the newest pose at 30 Hz; they come every 60 ms), nothing engages.
     let mut nan_sent = 0i64;
     for i in 0..30i64 {
-        input.put(&pedals(clock.now_ns(), true)).unwrap();
+        // Released first, then pressed: a fresh press (a controller does not take
+        // pedals held since before it heard them for one).
+        input.put(&pedals(clock.now_ns(), i >= 3)).unwrap();
         if i % 3 == 2 {
             nan_sent += 1;
             wrist

@@ -53,6 +53,25 @@ fn run(rate_hz: f64, steps: usize) {
     )
     .unwrap();
     let mut q_ik = q;
+    // The pedals heard released once before the run (a clutch held since before the
+    // controller started is not a press); not timed.
+    let released = ArmInputs {
+        operator: Some(OperatorSample {
+            received_s: -dt,
+            clutch: false,
+            enable: true,
+            motion_scale: 1.0,
+        }),
+        wrist: None,
+        operator_site_alive: true,
+        commander_conflict: false,
+    };
+    let idle = ArmState {
+        time_s: -dt,
+        position_rad: q,
+        velocity_rad_s: SVector::zeros(),
+    };
+    assert!(ctrl.step(-dt, &released, &idle).stopped.is_some());
     for k in 0..steps {
         let t = k as f64 * dt;
         // Operator: a 0.1 m square at 0.1 m/s in the wrist's x-y plane.

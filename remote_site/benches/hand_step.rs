@@ -55,6 +55,15 @@ fn main() {
     println!("| step (17 joints, adaptive) | periods | p50 | p99 |\n|---|---|---|---|");
     for round in 0..2 {
         let mut sup = HandSupervisor::new(HandSupervisorConfig::default(), lo, hi).unwrap();
+        // The operator's switch heard released once (a supervisor does not take a
+        // switch held since before its start for a press); not timed.
+        let released = Some(OperatorSample {
+            received_s: -DT,
+            clutch: false,
+            enable: false,
+            motion_scale: 1.0,
+        });
+        sup.step(-DT, released, true, &states[0], Some(&arm));
         let mut bare = ShadowHandController::new(HandControllerConfig {
             mode: HandMode::Adaptive,
             ..HandControllerConfig::default()

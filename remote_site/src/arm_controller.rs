@@ -52,7 +52,9 @@
 //!   the gate closing for any reason but the clutch (operator input stale, enable
 //!   released, operator site lost, invalid motion scale) or a non-finite arm state:
 //!   zero velocity at once and disengage. After such a *safety* stop the arm re-engages
-//!   only on a fresh clutch press (the clutch must be seen released first).
+//!   only on a fresh clutch press (the clutch must be seen released first); so does a
+//!   controller that starts (or restarts after a crash) while the operator holds the
+//!   clutch: it engages only after seeing the operator let go once.
 
 use nalgebra::{Isometry3, SVector, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
@@ -451,6 +453,9 @@ pub struct ArmController {
     joint_limiter: JointVelocityLimiter<7>,
     engaged: Option<Engaged>,
     latched: Option<StopReason>,
+    /// The operator has been seen letting go (clutch or enable released) since the
+    /// controller started: until then it does not engage.
+    armed: bool,
     last_stop: Option<StopReason>,
     counters: ArmCounters,
     stop_counts: std::collections::BTreeMap<&'static str, u64>,
@@ -508,6 +513,7 @@ impl ArmController {
             joint_limiter,
             engaged: None,
             latched: None,
+            armed: false,
             last_stop: Some(StopReason::ClutchReleased),
             counters: ArmCounters::default(),
             stop_counts: Default::default(),
@@ -527,6 +533,11 @@ impl ArmController {
     }
     pub fn counters(&self) -> ArmCounters {
         self.counters
+    }
+    /// Whether the operator has been seen letting go since the controller started (until
+    /// then a clutch press does not engage).
+    pub fn armed(&self) -> bool {
+        self.armed
     }
     /// The IK chain (base_link to the palm).
     pub fn chain(&self) -> &FixedChain<7> {
@@ -633,6 +644,7 @@ impl ArmController {
         {
             Ok(op) => op,
             Err(closed) => {
+                self.armed |= closed.by_operator();
                 let reason = match closed {
                     Closed::OperatorSiteLost => StopReason::OperatorSiteLost,
                     Closed::StaleInput => StopReason::StaleOperatorInput,
@@ -650,7 +662,9 @@ impl ArmController {
                 return self.stop(reason);
             }
         };
-        if self.latched.is_some() {
+        // A latched safety stop, or a controller started while the operator held the
+        // pedals: the operator must let go and press again.
+        if self.latched.is_some() || !self.armed {
             return self.stop(StopReason::AwaitingClutchRelease);
         }
         let wrist = inputs.wrist.filter(|w| {

@@ -17,7 +17,10 @@
 //!   (`gate = "clutch_and_enable"`, the default: ch. 7.3, the right pedal and the switch
 //!   enable both the arm and the hand), the clutch pedal pressed; with
 //!   `gate = "enable_only"` the switch alone — and the newest target is younger than
-//!   `command_timeout_s`. Each time the gate opens (a new engagement) the control law
+//!   `command_timeout_s`. A supervisor that starts (or restarts) while the operator
+//!   holds the gate open waits until the operator lets go once (`awaiting_release`),
+//!   so a restarted controller does not resume on pedals held from before. Each time
+//!   the gate opens (a new engagement) the control law
 //!   restarts: the adaptive profiles go back to their initial values and the phase to
 //!   `s = 1`, as the adaptive law's time-indexed basis expects.
 //! * **Hold.** Otherwise the hand **holds**: it
@@ -194,6 +197,9 @@ pub enum HoldReason {
     InvalidOperatorInput,
     /// None of the operator site's nodes is alive.
     OperatorSiteLost,
+    /// The controller started while the operator held the gate open: it follows only
+    /// after the operator has let go once (and pressed again).
+    AwaitingRelease,
 }
 
 impl HoldReason {
@@ -207,6 +213,7 @@ impl HoldReason {
             HoldReason::ClutchReleased => "clutch_released",
             HoldReason::InvalidOperatorInput => "invalid_operator_input",
             HoldReason::OperatorSiteLost => "operator_site_lost",
+            HoldReason::AwaitingRelease => "awaiting_release",
         }
     }
 }
@@ -232,6 +239,9 @@ pub struct HandSupervisor {
     target: Option<(SVector<f64, 17>, f64)>,
     last_step_s: Option<f64>,
     last_hold: Option<HoldReason>,
+    /// The operator has been seen letting go (enable or clutch released) since the
+    /// supervisor started: until then the hand holds.
+    armed: bool,
     steps: u64,
     targets_accepted: u64,
     targets_rejected: BTreeMap<&'static str, u64>,
@@ -267,6 +277,7 @@ impl HandSupervisor {
             target: None,
             last_step_s: None,
             last_hold: Some(HoldReason::NoTarget),
+            armed: false,
             steps: 0,
             targets_accepted: 0,
             targets_rejected: BTreeMap::new(),
@@ -402,7 +413,7 @@ impl HandSupervisor {
     }
 
     fn hold_reason(
-        &self,
+        &mut self,
         now_s: f64,
         operator: Option<OperatorSample>,
         alive: bool,
@@ -412,6 +423,7 @@ impl HandSupervisor {
             mode: self.config.gate,
         };
         if let Err(closed) = gate.check(now_s, operator.as_ref(), alive) {
+            self.armed |= closed.by_operator();
             return Some(match closed {
                 Closed::OperatorSiteLost => HoldReason::OperatorSiteLost,
                 Closed::StaleInput => HoldReason::StaleOperatorInput,
@@ -419,6 +431,9 @@ impl HandSupervisor {
                 Closed::EnableReleased => HoldReason::EnableReleased,
                 Closed::ClutchReleased => HoldReason::ClutchReleased,
             });
+        }
+        if !self.armed {
+            return Some(HoldReason::AwaitingRelease);
         }
         match self.target {
             None => Some(HoldReason::NoTarget),

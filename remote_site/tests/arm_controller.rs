@@ -36,7 +36,18 @@ impl Rig {
         Self::with(ArmControllerConfig::default())
     }
 
+    /// A rig whose controller has heard the operator's pedals released once (as at any
+    /// start: the operator has not pressed yet), so a clutch press engages.
     fn with(config: ArmControllerConfig) -> Self {
+        let mut r = Self::started_held(config);
+        r.clutch = false;
+        let released = r.step_at(0.0);
+        assert_eq!(released.stopped, Some(StopReason::ClutchReleased));
+        r
+    }
+
+    /// A rig whose controller has heard nothing yet.
+    fn started_held(config: ArmControllerConfig) -> Self {
         let ctrl = ArmController::new(robots::pr2_arm_chain().unwrap(), config).unwrap();
         Self {
             ctrl,
@@ -64,6 +75,11 @@ impl Rig {
     /// One control period: inputs arrive, the controller steps, the ideal arm moves.
     fn step(&mut self) -> teleop_remote_site::arm_controller::ArmStep {
         self.t += self.dt;
+        self.step_at(self.t)
+    }
+
+    fn step_at(&mut self, t: f64) -> teleop_remote_site::arm_controller::ArmStep {
+        self.t = t;
         if self.send_wrist {
             self.last_wrist = Some(WristSample {
                 received_s: self.t,
@@ -95,6 +111,29 @@ impl Rig {
         let out = self.step();
         out.command.velocity_rad_s.norm() > 0.0
     }
+}
+
+#[test]
+fn a_controller_started_with_the_clutch_held_waits_for_a_fresh_press() {
+    // A controller process (re)started while the operator holds the clutch and the
+    // switch: it does not take the held pedals for a press.
+    let mut r = Rig::started_held(ArmControllerConfig::default());
+    r.clutch = true;
+    for _ in 0..15 {
+        r.wrist.translation.vector.x += 0.005;
+        let out = r.step();
+        assert_eq!(out.command.velocity_rad_s, SVector::<f64, 7>::zeros());
+        assert_eq!(out.stopped, Some(StopReason::AwaitingClutchRelease));
+    }
+    assert!(!r.ctrl.is_engaged());
+    assert_eq!(r.ctrl.latched(), None, "waiting for a press is not a fault");
+    // The operator lets go, then presses: it engages and follows.
+    r.clutch = false;
+    assert_eq!(r.step().stopped, Some(StopReason::ClutchReleased));
+    r.clutch = true;
+    assert_eq!(r.step().stopped, None);
+    assert!(r.ctrl.is_engaged());
+    assert_eq!(r.ctrl.counters().engagements, 1);
 }
 
 #[test]

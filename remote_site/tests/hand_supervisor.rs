@@ -16,9 +16,33 @@ use teleop_sim::{CupGraspConfig, World, WorldConfig};
 
 const DT: f64 = 0.002;
 
-fn supervisor() -> HandSupervisor {
+/// A supervisor that has heard the operator's switch released once, as at any start
+/// (a supervisor started while the switch is held waits for that: see the last test).
+fn supervisor(w: &World) -> HandSupervisor {
     let (lo, hi) = HandSupervisor::shadow_hand_limits().unwrap();
-    HandSupervisor::new(HandSupervisorConfig::default(), lo, hi).unwrap()
+    let mut s = HandSupervisor::new(HandSupervisorConfig::default(), lo, hi).unwrap();
+    prime(&mut s, w);
+    s
+}
+
+fn engagements(s: &HandSupervisor) -> u64 {
+    s.named_counters()
+        .into_iter()
+        .find(|(n, _)| n == "hand.engagements")
+        .map_or(0, |(_, v)| v)
+}
+
+/// One period with the operator's switch and clutch released.
+fn prime(s: &mut HandSupervisor, w: &World) {
+    let t = w.time_s();
+    let released = OperatorSample {
+        received_s: t,
+        clutch: false,
+        enable: false,
+        motion_scale: 1.0,
+    };
+    let step = s.step(t, Some(released), true, &w.hand_state(), None);
+    assert_eq!(step.hold, Some(HoldReason::EnableReleased));
 }
 
 fn target_msg(q: &SVector<f64, 17>) -> JointState {
@@ -76,7 +100,7 @@ fn max_effort(cmds: &[(HandCommand, Option<HoldReason>)]) -> f64 {
 #[test]
 fn the_hand_starts_still_and_follows_only_with_targets_and_enable() {
     let mut w = World::new(WorldConfig::default()).unwrap();
-    let mut s = supervisor();
+    let mut s = supervisor(&w);
     // Fingers straight, palm sideways-free: hold what is measured, no target yet.
     let q0 = w.hand_position_rad();
     let out = run(&mut w, &mut s, 0.5, None, &enabled, true);
@@ -123,7 +147,7 @@ fn every_watchdog_path_holds_the_last_target_within_one_period() {
     ];
     for (name, reason) in cases {
         let mut w = World::new(WorldConfig::default()).unwrap();
-        let mut s = supervisor();
+        let mut s = supervisor(&w);
         let mut target = SVector::<f64, 17>::zeros();
         target[finger_joint_index("rh_FFJ3").unwrap()] = 0.8;
         run(&mut w, &mut s, 1.0, Some(&target), &enabled, true);
@@ -180,7 +204,7 @@ fn every_watchdog_path_holds_the_last_target_within_one_period() {
 fn a_grasp_is_kept_on_hold_with_capped_effort() {
     let config = CupGraspConfig::default();
     let mut w = World::cup_grasp(&config).unwrap();
-    let mut s = supervisor();
+    let mut s = supervisor(&w);
     let closed = SVector::from(config.closed_posture_rad);
     run(&mut w, &mut s, 2.0, Some(&closed), &enabled, true);
     let before = w.fingertip_force_n();
@@ -206,7 +230,7 @@ fn a_grasp_is_kept_on_hold_with_capped_effort() {
 
 #[test]
 fn bad_targets_are_refused_by_name_and_change_nothing() {
-    let mut s = supervisor();
+    let mut s = supervisor(&World::new(WorldConfig::default()).unwrap());
     let good = SVector::<f64, 17>::repeat(0.1);
     s.accept_target(&target_msg(&good), 0.0).unwrap();
 
@@ -268,9 +292,11 @@ fn bad_targets_are_refused_by_name_and_change_nothing() {
 #[test]
 fn a_non_finite_state_resends_the_previous_command_and_a_lost_hand_gets_a_position_hold() {
     let mut w = World::new(WorldConfig::default()).unwrap();
-    let mut s = supervisor();
+    let (lo, hi) = HandSupervisor::shadow_hand_limits().unwrap();
+    let mut s = HandSupervisor::new(HandSupervisorConfig::default(), lo, hi).unwrap();
     // Never saw the hand: nothing to send.
     assert_eq!(s.hardware_lost(), None);
+    prime(&mut s, &w);
     let target = SVector::<f64, 17>::repeat(0.2);
     run(&mut w, &mut s, 0.2, Some(&target), &enabled, true);
     let t = w.time_s();
@@ -309,7 +335,7 @@ fn the_clutch_gates_the_hand_as_configured_and_engagement_restarts_the_phase() {
     };
     // Default gate: clutch released holds.
     let mut w = World::new(WorldConfig::default()).unwrap();
-    let mut s = supervisor();
+    let mut s = supervisor(&w);
     let out = run(&mut w, &mut s, 0.5, Some(&target), &no_clutch, true);
     assert!(
         out.iter()
@@ -327,6 +353,7 @@ fn the_clutch_gates_the_hand_as_configured_and_engagement_restarts_the_phase() {
     )
     .unwrap();
     let mut w = World::new(WorldConfig::default()).unwrap();
+    prime(&mut s, &w);
     let out = run(&mut w, &mut s, 1.0, Some(&target), &no_clutch, true);
     assert_eq!(out.last().unwrap().1, None);
     // The phase ran while following; a new engagement restarts it at s = 1.
@@ -351,4 +378,40 @@ fn the_clutch_gates_the_hand_as_configured_and_engagement_restarts_the_phase() {
         .unwrap()
         .1;
     assert_eq!(engagements, 2);
+}
+
+#[test]
+fn a_supervisor_started_with_the_switch_held_waits_until_the_operator_lets_go() {
+    // A hand controller (re)started while the operator holds the switch and the clutch:
+    // it holds, and follows only after the operator has let go once and pressed again.
+    let (lo, hi) = HandSupervisor::shadow_hand_limits().unwrap();
+    let mut s = HandSupervisor::new(HandSupervisorConfig::default(), lo, hi).unwrap();
+    let mut w = World::new(WorldConfig::default()).unwrap();
+    let mut target = SVector::<f64, 17>::zeros();
+    target[finger_joint_index("rh_FFJ3").unwrap()] = 0.8;
+    let q0 = w.hand_position_rad();
+    let out = run(&mut w, &mut s, 0.5, Some(&target), &enabled, true);
+    assert!(
+        out.iter()
+            .all(|(_, h)| *h == Some(HoldReason::AwaitingRelease)),
+        "held pedals from before the start must not engage"
+    );
+    assert!(
+        (w.hand_position_rad() - q0).amax() < 0.05,
+        "the hand stayed"
+    );
+    assert_eq!(engagements(&s), 0);
+    let released = |t: f64| {
+        Some(OperatorSample {
+            received_s: t,
+            clutch: false,
+            enable: false,
+            motion_scale: 1.0,
+        })
+    };
+    let out = run(&mut w, &mut s, 0.1, Some(&target), &released, true);
+    assert_eq!(out.last().unwrap().1, Some(HoldReason::EnableReleased));
+    let out = run(&mut w, &mut s, 0.5, Some(&target), &enabled, true);
+    assert_eq!(out.last().unwrap().1, None, "follows after a fresh press");
+    assert_eq!(engagements(&s), 1);
 }

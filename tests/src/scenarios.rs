@@ -94,7 +94,17 @@ impl HandLoop {
         };
         let (lower, upper) = HandSupervisor::shadow_hand_limits()
             .map_err(|e| ScenarioError::Supervisor(SupervisorError::Model(e)))?;
-        let supervisor = HandSupervisor::new(config, lower, upper)?;
+        let mut supervisor = HandSupervisor::new(config, lower, upper)?;
+        // The operator's switch heard released once before the run, as at any start (a
+        // supervisor does not take a switch held since before it started for a press).
+        let t0 = world.time_s();
+        let released = OperatorSample {
+            received_s: t0,
+            clutch: false,
+            enable: false,
+            motion_scale: 1.0,
+        };
+        supervisor.step(t0, Some(released), true, &world.hand_state(), None);
         let (world, _arm, sim_hand) = teleop_sim::share(world);
         let safety = HandSafety::new(HandLimits::shadow()?, HandSafetyConfig::default())?;
         Ok(Self {

@@ -55,6 +55,14 @@ pub enum Closed {
 }
 
 impl Closed {
+    /// Closed by the operator's own hand (enable or clutch released), not by a fault: a
+    /// controller that starts arms only after seeing this once, so a process started (or
+    /// restarted) while the pedals are held does not move the robot until the operator
+    /// lets go and presses again.
+    pub fn by_operator(self) -> bool {
+        matches!(self, Closed::EnableReleased | Closed::ClutchReleased)
+    }
+
     /// Short name for counters and logs.
     pub fn name(self) -> &'static str {
         match self {

@@ -1,0 +1,87 @@
+#!/usr/bin/env bash
+# Fault tests against the running compose system (a step of deploy/compose/test.sh,
+# which exports what this needs): each container in turn is killed (SIGKILL: a crash,
+# a pulled plug) during a clutched motion and started again 2.5 s later. Listeners on
+# both site LANs record every node's status and the robots' joint states; for each
+# container check_faults.py checks:
+#
+#   * every other container kept running;
+#   * the robots its commands drive stopped while it was gone (a controller's robot
+#     brakes in the hardware safety layer; a commander's robot is stopped by its
+#     controller's watchdogs);
+#   * it reconnected: its status (for a router: its site's nodes' status across the
+#     WAN) reached the other site again within 1 s of the container running again.
+#
+#   check_faults.sh [SERVICE...]     (default: every node container and both routers)
+#
+# Needs: COMPOSE_PROJECT_NAME, TELEOP_IMAGE, TELEOP_CERTS, TELEOP_REPORT_DIR.
+set -euo pipefail
+HERE=$(cd "$(dirname "$0")" && pwd)
+: "${COMPOSE_PROJECT_NAME:?}" "${TELEOP_CERTS:?}" "${TELEOP_REPORT_DIR:?}"
+IMAGE=${TELEOP_IMAGE:-teleop:local}
+if docker compose version >/dev/null 2>&1; then COMPOSE=(docker compose); else COMPOSE=(docker-compose); fi
+compose() { "${COMPOSE[@]}" -f "$HERE/docker-compose.yml" "$@"; }
+OUT=$TELEOP_REPORT_DIR/faults
+mkdir -p "$OUT"
+SERVICES=("$@")
+if [[ ${#SERVICES[@]} == 0 ]]; then
+  SERVICES=(pc1-wrist-tracker pc1-camera-arm pc1-hand-inference pc3-local-sim pc2-arm pc2-hand
+    pc2-feedback robot-sim local-router remote-router)
+fi
+ALL=(local-router wan-link remote-router robot-sim pc2-arm pc2-hand pc2-feedback
+  pc1-wrist-tracker pc1-camera-arm pc1-hand-inference pc3-local-sim)
+
+# A listener on a site LAN as the observer identity: `teleop topic echo` of each topic
+# given, as JSON lines, into $OUT/<tag>-<topic-name>.jsonl, for $3 seconds.
+listen() { # site tag seconds topic...
+  local site=$1 tag=$2 secs=$3
+  shift 3
+  local net router
+  if [[ $site == local ]]; then net=local_lan router=172.30.1.2; else net=remote_lan router=172.30.2.2; fi
+  local cmds=""
+  for t in "$@"; do
+    cmds+="teleop \$Z topic echo $t --format json --duration-s $secs >/out/$tag-$(basename "$(dirname "$t")")-$(basename "$t").jsonl 2>/dev/null & "
+  done
+  docker run -d --rm --label "com.docker.compose.project=$COMPOSE_PROJECT_NAME" \
+    --network "${COMPOSE_PROJECT_NAME}_$net" -v "$OUT:/out" -v "$TELEOP_CERTS:/certs:ro" "$IMAGE" \
+    sh -c "set -f; Z='--mode client --connect tls/$router:7447 --no-multicast-scouting --tls-ca /certs/ca.pem --tls-cert /certs/teleop-observer.pem --tls-key /certs/teleop-observer.key --hardware-interface *'; $cmds wait"
+}
+
+failed=()
+for s in "${SERVICES[@]}"; do
+  tag=$s
+  rm -f "$OUT/$tag"-*.jsonl
+  ids=$(listen remote "$tag-r" 20 /teleop/status /teleop/hw/pr2_arm/state /teleop/hw/shadow_hand/state
+    listen local "$tag-l" 20 /teleop/status /teleop/hw/ur5/state)
+  sleep 1.5
+  # The task from its start: the operator presses the clutch 2 s in.
+  compose restart -t 5 pc3-local-sim >/dev/null 2>&1
+  sleep 7
+  t_kill=$(date +%s.%N)
+  compose kill "$s" >/dev/null 2>&1
+  sleep 2.5
+  mapfile -t running < <(compose ps --services --filter status=running 2>/dev/null || true)
+  others_down=()
+  for o in "${ALL[@]}"; do
+    [[ $o == "$s" ]] && continue
+    printf '%s\n' "${running[@]}" | grep -qx "$o" || others_down+=("$o")
+  done
+  t_start=$(date +%s.%N)
+  compose start "$s" >/dev/null 2>&1
+  t_running=$(date +%s.%N)
+  # shellcheck disable=SC2086
+  docker wait $ids >/dev/null 2>&1 || true
+  echo "faults: $s killed during a clutched motion, started again 2.5 s later"
+  if ! python3 "$HERE/check_faults.py" "$OUT" "$tag" "$s" "$t_kill" "$t_start" "$t_running" \
+      "${others_down[*]:-}"; then
+    failed+=("$s")
+    compose logs --no-color --tail 15 "$s" || true
+  fi
+  # The next container's turn starts from a whole system.
+  sleep 1
+done
+if [[ ${#failed[@]} -gt 0 ]]; then
+  echo "faults: FAILED for ${failed[*]}"
+  exit 1
+fi
+echo "faults: passed (${#SERVICES[@]} containers killed and restarted in turn)"
