@@ -40,6 +40,29 @@ if ! docker info >/dev/null 2>&1 || [[ ${#COMPOSE[@]} == 0 ]]; then
   exit 1
 fi
 
+# The stack's networks have fixed subnets (the configs name them). A network left by
+# an earlier compose test that was killed before its teardown is removed when nothing
+# uses it; any other network on one of those subnets (another stack still up) is named,
+# with how to stop it, and the test stops here instead of failing inside `up`.
+SUBNETS=(172.30.1.0/24 172.30.2.0/24 172.30.8.0/24 172.30.9.0/24)
+while read -r net; do
+  [[ -z $net ]] && continue
+  subnets=$(docker network inspect -f '{{range .IPAM.Config}}{{.Subnet}} {{end}}' "$net" 2>/dev/null || true)
+  for s in "${SUBNETS[@]}"; do
+    [[ " $subnets " == *" $s "* ]] || continue
+    users=$(docker network inspect -f '{{len .Containers}}' "$net" 2>/dev/null || echo 1)
+    project=$(docker network inspect -f '{{index .Labels "com.docker.compose.project"}}' "$net" 2>/dev/null || true)
+    if [[ $net == teleoptest* && $users == 0 ]]; then
+      echo "compose test: removing network $net, left unused by an earlier run ($s)"
+      docker network rm "$net" >/dev/null
+    else
+      echo "compose test: network $net (compose project '${project:-none}', $users container(s)) already uses $s, which this stack needs"
+      echo "compose test: stop it first, e.g. docker-compose -p ${project:-<project>} -f deploy/compose/docker-compose.yml down -v"
+      exit 1
+    fi
+  done
+done < <(docker network ls --format '{{.Name}}')
+
 export COMPOSE_PROJECT_NAME=teleoptest$$
 export TELEOP_REPORT_DIR TELEOP_CERTS
 TELEOP_REPORT_DIR=$(mktemp -d /tmp/teleop-compose-report.XXXXXX)
