@@ -2,7 +2,10 @@
 other containers kept running, the robots the killed container drives stopped while it
 was gone, and it reconnected within 1 s of running again.
 
-    check_faults.py DIR TAG SERVICE KILL_S START_S RUNNING_S "OTHERS_DOWN"
+    check_faults.py DIR TAG SERVICE KILL_S KILLED_S START_S RUNNING_S "OTHERS_DOWN"
+
+KILL_S and KILLED_S: when the kill was issued and when the engine said it was done;
+START_S and RUNNING_S the same for the start (s since the epoch).
 
 Prints what it measured; exits 1 on a miss."""
 
@@ -22,19 +25,39 @@ MOVING_ABOVE_RAD_S = 0.03
 LOCAL_NODES = ["wrist_tracker", "camera_arm", "hand_inference", "local_sim"]
 REMOTE_NODES = ["pr2_arm_controller", "shadow_hand_controller", "feedback_publisher", "remote_sim"]
 
-# service -> (node whose status shows it is back, or the site whose nodes' status must
-# cross the WAN again; robots that must stop: (recording, must have been moving)).
+# How a robot must behave while the container is gone:
+#   "stop": no joint faster than STOPPED_BELOW_RAD_S from SETTLE_S after the kill (the
+#           PR2 braked by its controller's watchdogs or the hardware safety layer; a
+#           hand whose controller died, stopped by the safety layer);
+#   "hold": the Shadow hand controller holds the last posture (its targets' source is
+#           gone): the controller counts hand.hold.stale_target and the posture, each
+#           joint averaged over HOLD_WINDOW_S, drifts less than HOLD_DRIFT_RAD between
+#           the first and the last window. The fingers' effort loop keeps them moving
+#           about that posture (the hand controller's 500 Hz effort loop over the bus
+#           chatters: joint speeds of 10-40 rad/s at saturated effort, in the one-machine
+#           run too; an open problem noted on the hand controller), so their speed is not
+#           the measure, and averaged postures move by up to 0.2 rad between windows
+#           in normal following;
+#   "displacement": the listener's own router was the one killed, nothing is heard
+#           while it is gone: the arm before the kill against the arm once heard again.
+HOLD_WINDOW_S = 0.25
+HOLD_DRIFT_RAD = 0.3
+DISPLACEMENT_RAD = 0.05
+
+# service -> (node whose status shows it is back, or "site:<site>" whose nodes' status
+# must cross the WAN again; robots: (recording, mode, must have been moving)).
 SERVICES = {
-    "pc1-wrist-tracker": ("wrist_tracker", [("r-pr2_arm-state", True), ("l-ur5-state", True)]),
-    "pc1-camera-arm": ("camera_arm", [("l-ur5-state", True)]),
-    "pc1-hand-inference": ("hand_inference", [("r-shadow_hand-state", False)]),
-    "pc3-local-sim": ("local_sim", [("r-pr2_arm-state", True)]),
-    "pc2-arm": ("pr2_arm_controller", [("r-pr2_arm-state", True)]),
-    "pc2-hand": ("shadow_hand_controller", [("r-shadow_hand-state", False)]),
+    "pc1-wrist-tracker": ("wrist_tracker", [("r-pr2_arm-state", "stop", True),
+                                            ("l-ur5-state", "stop", True)]),
+    "pc1-camera-arm": ("camera_arm", [("l-ur5-state", "stop", True)]),
+    "pc1-hand-inference": ("hand_inference", [("r-shadow_hand-state", "hold", False)]),
+    "pc3-local-sim": ("local_sim", [("r-pr2_arm-state", "stop", True)]),
+    "pc2-arm": ("pr2_arm_controller", [("r-pr2_arm-state", "stop", True)]),
+    "pc2-hand": ("shadow_hand_controller", [("r-shadow_hand-state", "stop", False)]),
     "pc2-feedback": ("feedback_publisher", []),
     "robot-sim": ("remote_sim", []),
-    "local-router": ("site:local", [("r-pr2_arm-state", True), ("r-shadow_hand-state", False)]),
-    "remote-router": ("site:remote", [("displacement:r-pr2_arm-state", True)]),
+    "local-router": ("site:local", [("r-pr2_arm-state", "stop", True)]),
+    "remote-router": ("site:remote", [("r-pr2_arm-state", "displacement", True)]),
 }
 
 
@@ -50,14 +73,38 @@ def lines(path):
     return out
 
 
+def t_of(sample):
+    return sample["_meta"]["received_s"]
+
+
+def mean_position(samples):
+    n = len(samples)
+    return [sum(s["position"][j] for s in samples) / n for j in range(len(samples[0]["position"]))]
+
+
+def counter_rise(statuses, node, counter, t0, t1):
+    """How much a node's counter rose between its last status before t0 and its first
+    status after t1 (None if either is missing)."""
+    mine = sorted((s for s in statuses if s["node_name"] == node), key=t_of)
+    a = [s for s in mine if t_of(s) <= t0]
+    b = [s for s in mine if t_of(s) >= t1]
+    if not (a and b):
+        return None
+
+    def value(s):
+        return dict(zip(s["counter_names"], s["counter_values"])).get(counter, 0)
+
+    return value(b[0]) - value(a[-1])
+
+
 def speed(sample):
     return max((abs(v) for v in sample.get("velocity", []) or [0.0]), default=0.0)
 
 
 def main():
     d, tag, service = Path(sys.argv[1]), sys.argv[2], sys.argv[3]
-    kill, start, running = (float(x) for x in sys.argv[4:7])
-    others_down = sys.argv[7].split() if len(sys.argv) > 7 else []
+    kill, killed, start, running = (float(x) for x in sys.argv[4:8])
+    others_down = sys.argv[8].split() if len(sys.argv) > 8 else []
     back_by, robots = SERVICES[service]
     ok = True
 
@@ -69,39 +116,57 @@ def main():
     check(not others_down, "every other container kept running"
           + (f" (down: {', '.join(others_down)})" if others_down else ""))
 
-    for rec, must_move in robots:
-        displacement = rec.startswith("displacement:")
-        rec = rec.removeprefix("displacement:")
-        states = sorted(lines(d / f"{tag}-{rec}.jsonl"), key=lambda s: s["_meta"]["received_s"])
+    statuses = lines(d / f"{tag}-r-teleop-status.jsonl") + lines(d / f"{tag}-l-teleop-status.jsonl")
+    for rec, mode, must_move in robots:
+        states = sorted(lines(d / f"{tag}-{rec}.jsonl"), key=t_of)
         name = rec.split("-", 1)[1].removesuffix("-state")
-        before = [s for s in states if kill - 1.0 <= s["_meta"]["received_s"] <= kill]
+        before = [s for s in states if kill - 1.0 <= t_of(s) <= kill]
         moving = max((speed(s) for s in before), default=0.0)
         if must_move:
             check(moving > MOVING_ABOVE_RAD_S,
-                  f"{name} was moving when the container was killed (fastest joint {moving:.3f} rad/s)")
-        else:
-            print(f"      {name}: fastest joint in the last second before the kill {moving:.3f} rad/s")
-        if displacement:
-            # The listener's own router was the one killed: compare the arm before the
-            # kill with the arm once it is heard again.
-            last = [s for s in states if s["_meta"]["received_s"] <= kill]
-            after = [s for s in states if s["_meta"]["received_s"] >= start]
+                  f"{name} was moving when the container was killed (fastest joint "
+                  f"{moving:.3f} rad/s in the second before)")
+        if mode == "displacement":
+            last = [s for s in states if t_of(s) <= kill]
+            after = [s for s in states if t_of(s) >= start]
             if not (last and after):
                 check(False, f"{name} heard before the kill and after the restart")
                 continue
             q0, q1 = last[-1]["position"], after[0]["position"]
             moved = max(abs(a - b) for a, b in zip(q0, q1))
-            check(moved < 0.05, f"{name} held still while its site's router was down: "
-                  f"moved {moved:.4f} rad in {after[0]['_meta']['received_s'] - last[-1]['_meta']['received_s']:.1f} s")
-            continue
-        gone = [s for s in states if kill + SETTLE_S <= s["_meta"]["received_s"] <= start]
-        fastest = max((speed(s) for s in gone), default=None)
-        check(fastest is not None and fastest < STOPPED_BELOW_RAD_S,
-              f"{name} stopped while the container was gone: fastest joint "
-              f"{'-' if fastest is None else f'{fastest:.4f}'} rad/s from {SETTLE_S} s after the kill "
-              f"({len(gone)} samples)")
+            check(moved < DISPLACEMENT_RAD, f"{name} held still while its site's router was down: "
+                  f"moved {moved:.4f} rad in {t_of(after[0]) - t_of(last[-1]):.1f} s")
+        elif mode == "hold":
+            gone = [s for s in states if killed + SETTLE_S <= t_of(s) <= start]
+            if not gone:
+                check(False, f"{name} heard while the container was gone")
+                continue
+            first = [s for s in gone if t_of(s) <= t_of(gone[0]) + HOLD_WINDOW_S]
+            last = [s for s in gone if t_of(s) >= t_of(gone[-1]) - HOLD_WINDOW_S]
+            drift = max(abs(a - b) for a, b in zip(mean_position(first), mean_position(last)))
+            holds = counter_rise(statuses, "shadow_hand_controller", "hand.hold.stale_target",
+                                 kill, start)
+            check(holds is not None and holds > 0 and drift < HOLD_DRIFT_RAD,
+                  f"{name} held its posture while its targets' source was gone: "
+                  f"hand.hold.stale_target +{holds}, posture drift {drift:.3f} rad over "
+                  f"{t_of(gone[-1]) - t_of(gone[0]):.1f} s (joints averaged over {HOLD_WINDOW_S} s)")
+        else:
+            gone = [s for s in states if killed + SETTLE_S <= t_of(s) <= start]
+            fastest = max((speed(s) for s in gone), default=None)
+            # When it came to rest: the first sample after the kill from which on every
+            # sample until the restart is below the threshold.
+            after_kill = [s for s in states if kill <= t_of(s) <= start]
+            rest = None
+            for i, s in enumerate(after_kill):
+                if all(speed(x) < STOPPED_BELOW_RAD_S for x in after_kill[i:]):
+                    rest = max(0.0, t_of(s) - kill)
+                    break
+            check(fastest is not None and fastest < STOPPED_BELOW_RAD_S,
+                  f"{name} stopped while the container was gone: fastest joint "
+                  f"{'-' if fastest is None else f'{fastest:.4f}'} rad/s from {SETTLE_S} s after "
+                  f"the kill until the restart ({len(gone)} samples); at rest "
+                  f"{'never' if rest is None else f'{rest * 1000:.0f} ms after the kill was issued'}")
 
-    statuses = lines(d / f"{tag}-r-teleop-status.jsonl") + lines(d / f"{tag}-l-teleop-status.jsonl")
     if back_by.startswith("site:"):
         site = back_by.split(":")[1]
         nodes = LOCAL_NODES if site == "local" else REMOTE_NODES

@@ -3,7 +3,8 @@ the local-site goals the launch test asserts on one machine: the camera within 1
 average and 3 cm at worst of its goal with the hand fully in view in >= 99.5 % of
 frames, the PR2 within 5 mm on average of the scaled operator motion over one clutch
 engagement, hand joints within 1.2x the shipped model's offline error, every latency
-stage measured. Prints each figure with its goal; exits 1 on the first miss."""
+stage measured. Prints each figure with its goal; exits 1 on a miss, 3 on a miss in a
+run where the PR2 arm made a safety stop on a stale wrist pose."""
 
 import json
 import sys
@@ -34,6 +35,14 @@ def main(path: str) -> int:
         ok = ops[op](value, goal)
         failed += not ok
         print(f"  {'ok ' if ok else 'BAD'} {name}: {value:.4g} (goal {op} {goal:.4g})")
+    if failed and r.get("pr2_stops", {}).get("stale_wrist_pose", 0) > 0:
+        # The PR2 arm made a safety stop on a wrist pose older than its deadline (a
+        # stall of the poses on the way, > 100 ms): it then waits for a fresh clutch
+        # press the scripted operator does not make, and the figures above measure
+        # that stop, not the tracking. Exit 3 tells the compose test so.
+        print("  the PR2 arm made a safety stop on a stale wrist pose during the task "
+              f"(pr2_stops: {r['pr2_stops']})")
+        return 3
     return 1 if failed else 0
 
 if __name__ == "__main__":
