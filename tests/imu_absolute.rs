@@ -66,10 +66,12 @@ fn target(skeleton: &Skeleton, mapping: &ImuArmMapping, t: f64) -> Isometry3<f64
     mapping.palm_target(&arm).unwrap()
 }
 
-/// Serves the broadcast at 50 Hz until `STREAM_UNTIL_S`, then closes.
-fn serve(listener: TcpListener) {
+/// Serves the broadcast at 50 Hz until `STREAM_UNTIL_S`, then closes; sends the
+/// moment its clock started (the tracker connected) on `started`.
+fn serve(listener: TcpListener, started: std::sync::mpsc::Sender<Instant>) {
     let (mut conn, _) = listener.accept().unwrap();
     let start = Instant::now();
+    let _ = started.send(start);
     loop {
         let t = start.elapsed().as_secs_f64();
         if t > STREAM_UNTIL_S {
@@ -168,8 +170,8 @@ async fn the_pr2_follows_the_imu_suit_absolutely_and_stops_when_the_stream_ends(
     let poses = probe.subscriber(&topics::WRIST_POSE).await.unwrap();
     let arm_task = tokio::spawn(arm_node::run(arm, Some(Duration::from_secs(12))));
     let tracker_task = tokio::spawn(wrist_tracker::run(tracker, Some(Duration::from_secs(12))));
-    let server = std::thread::spawn(move || serve(listener));
-    let t0 = probe.now_s();
+    let (started_tx, started_rx) = std::sync::mpsc::channel();
+    let server = std::thread::spawn(move || serve(listener, started_tx));
 
     let chain = teleop_kinematics::robots::pr2_arm_chain().unwrap();
     let mut palm: Vec<(f64, Vector3<f64>)> = Vec::new();
@@ -182,17 +184,24 @@ async fn the_pr2_follows_the_imu_suit_absolutely_and_stops_when_the_stream_ends(
             let q = wire::arm_state(&joints::PR2_ARM_JOINTS, &r.msg)
                 .unwrap()
                 .position_rad;
-            palm.push((
-                r.receive_time_s() - t0,
-                chain.end_pose(&q).translation.vector,
-            ));
+            palm.push((r.receive_time_s(), chain.end_pose(&q).translation.vector));
         }
         while let Some(r) = poses.try_recv() {
             frames_ok &= r.msg.header.frame_id == "torso_lift_link";
-            targets.push((r.receive_time_s() - t0, wire::isometry(&r.msg.pose)));
+            targets.push((r.receive_time_s(), wire::isometry(&r.msg.pose)));
         }
     }
     server.join().unwrap();
+    // Times from the broadcast's start, on the probe's clock: the server's clock starts
+    // when the tracker connects, which under load is a while after the nodes start.
+    let started = started_rx.recv().expect("the tracker connected");
+    let t0 = probe.now_s() - started.elapsed().as_secs_f64();
+    for (t, _) in palm.iter_mut() {
+        *t -= t0;
+    }
+    for (t, _) in targets.iter_mut() {
+        *t -= t0;
+    }
     let arm_report = arm_task.await.unwrap().unwrap();
     tracker_task.await.unwrap().unwrap();
     sim_task.await.unwrap().unwrap();
