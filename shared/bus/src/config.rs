@@ -193,17 +193,6 @@ impl ZenohSettings {
         // (docs/benchmarks.md, bus section). Memory cost: up to 1 MiB per link.
         set("transport/link/tx/queue/size/data_low", "16".into())?;
         set("transport/link/rx/buffer_size", "1048576".into())?;
-        // A lost router (or, for a router, its peer router) is dialled again every
-        // 250 ms, then 500 ms, then every second, instead of Zenoh's 1-2-4 s back-off:
-        // a restarted router is found again within about a second of listening (the
-        // compose fault tests: deploy/compose/check_faults.sh). A --zenoh-config file
-        // keeps its own setting.
-        if self.config_file.is_none() {
-            set(
-                "connect/retry",
-                "{ period_init_ms: 250, period_max_ms: 1000, period_increase_factor: 2 }".into(),
-            )?;
-        }
         if let Some(tls) = &self.tls {
             tls.check_endpoints(&self.connect, self.listened())?;
             let ca = tls.file("ca_certificate", &tls.ca_certificate)?;
@@ -391,16 +380,6 @@ mod tests {
             .zenoh
             .to_zenoh()
             .expect("default zenoh config is valid");
-    }
-
-    #[test]
-    fn a_lost_router_is_dialled_again_within_a_second() {
-        let cfg = BusConfig::default().zenoh.to_zenoh().expect("valid");
-        let retry: serde_json::Value =
-            serde_json::from_str(&cfg.get_json("connect/retry").expect("connect/retry is set"))
-                .expect("json");
-        assert_eq!(retry["period_init_ms"], 250, "{retry}");
-        assert_eq!(retry["period_max_ms"], 1000, "{retry}");
     }
 
     #[test]
