@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Fault tests against the running compose system (a step of deploy/compose/test.sh,
-# which exports what this needs): each container in turn is killed (SIGKILL: a crash,
+# Fault tests against a running compose system (by hand for now: not yet a step of
+# deploy/compose/test.sh): each container in turn is killed (SIGKILL: a crash,
 # a pulled plug) during a clutched motion and started again 2.5 s later. Listeners on
 # both site LANs record every node's status and the robots' joint states; for each
 # container check_faults.py checks:
