@@ -17,10 +17,8 @@
 # Needs: COMPOSE_PROJECT_NAME, TELEOP_IMAGE, TELEOP_CERTS, TELEOP_REPORT_DIR.
 set -euo pipefail
 HERE=$(cd "$(dirname "$0")" && pwd)
-: "${COMPOSE_PROJECT_NAME:?}" "${TELEOP_CERTS:?}" "${TELEOP_REPORT_DIR:?}"
-IMAGE=${TELEOP_IMAGE:-teleop:local}
-if docker compose version >/dev/null 2>&1; then COMPOSE=(docker compose); else COMPOSE=(docker-compose); fi
-compose() { "${COMPOSE[@]}" -f "$HERE/docker-compose.yml" "$@"; }
+# shellcheck source=checks-common.sh
+source "$HERE/checks-common.sh"
 OUT=$TELEOP_REPORT_DIR/faults
 mkdir -p "$OUT"
 SERVICES=("$@")

@@ -57,12 +57,7 @@ fn main() {
         let mut sup = HandSupervisor::new(HandSupervisorConfig::default(), lo, hi).unwrap();
         // The operator's switch heard released once (a supervisor does not take a
         // switch held since before its start for a press); not timed.
-        let released = Some(OperatorSample {
-            received_s: -DT,
-            clutch: false,
-            enable: false,
-            motion_scale: 1.0,
-        });
+        let released = Some(OperatorSample::released(-DT));
         sup.step(-DT, released, true, &states[0], Some(&arm));
         let mut bare = ShadowHandController::new(HandControllerConfig {
             mode: HandMode::Adaptive,

@@ -35,13 +35,13 @@ fn engagements(s: &HandSupervisor) -> u64 {
 /// One period with the operator's switch and clutch released.
 fn prime(s: &mut HandSupervisor, w: &World) {
     let t = w.time_s();
-    let released = OperatorSample {
-        received_s: t,
-        clutch: false,
-        enable: false,
-        motion_scale: 1.0,
-    };
-    let step = s.step(t, Some(released), true, &w.hand_state(), None);
+    let step = s.step(
+        t,
+        Some(OperatorSample::released(t)),
+        true,
+        &w.hand_state(),
+        None,
+    );
     assert_eq!(step.hold, Some(HoldReason::EnableReleased));
 }
 
@@ -359,25 +359,12 @@ fn the_clutch_gates_the_hand_as_configured_and_engagement_restarts_the_phase() {
     // The phase ran while following; a new engagement restarts it at s = 1.
     let phase = s.controller().adaptive().phase();
     assert!(phase < 0.5, "phase {phase}");
-    let released = |t: f64| {
-        Some(OperatorSample {
-            received_s: t,
-            clutch: false,
-            enable: false,
-            motion_scale: 1.0,
-        })
-    };
+    let released = |t: f64| Some(OperatorSample::released(t));
     run(&mut w, &mut s, 0.1, Some(&target), &released, true);
     run(&mut w, &mut s, DT, Some(&target), &no_clutch, true);
     let phase = s.controller().adaptive().phase();
     assert!(phase > 0.99, "phase after re-engaging {phase}");
-    let counters = s.named_counters();
-    let engagements = counters
-        .iter()
-        .find(|(n, _)| n == "hand.engagements")
-        .unwrap()
-        .1;
-    assert_eq!(engagements, 2);
+    assert_eq!(engagements(&s), 2);
 }
 
 #[test]
@@ -401,14 +388,7 @@ fn a_supervisor_started_with_the_switch_held_waits_until_the_operator_lets_go() 
         "the hand stayed"
     );
     assert_eq!(engagements(&s), 0);
-    let released = |t: f64| {
-        Some(OperatorSample {
-            received_s: t,
-            clutch: false,
-            enable: false,
-            motion_scale: 1.0,
-        })
-    };
+    let released = |t: f64| Some(OperatorSample::released(t));
     let out = run(&mut w, &mut s, 0.1, Some(&target), &released, true);
     assert_eq!(out.last().unwrap().1, Some(HoldReason::EnableReleased));
     let out = run(&mut w, &mut s, 0.5, Some(&target), &enabled, true);

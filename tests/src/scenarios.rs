@@ -98,12 +98,7 @@ impl HandLoop {
         // The operator's switch heard released once before the run, as at any start (a
         // supervisor does not take a switch held since before it started for a press).
         let t0 = world.time_s();
-        let released = OperatorSample {
-            received_s: t0,
-            clutch: false,
-            enable: false,
-            motion_scale: 1.0,
-        };
+        let released = OperatorSample::released(t0);
         supervisor.step(t0, Some(released), true, &world.hand_state(), None);
         let (world, _arm, sim_hand) = teleop_sim::share(world);
         let safety = HandSafety::new(HandLimits::shadow()?, HandSafetyConfig::default())?;

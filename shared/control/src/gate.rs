@@ -27,6 +27,19 @@ pub struct OperatorSample {
     pub motion_scale: f64,
 }
 
+impl OperatorSample {
+    /// Pedals and switch released (scale 1), received at `received_s`: what a
+    /// controller must hear once before it takes a press for one.
+    pub fn released(received_s: f64) -> Self {
+        Self {
+            received_s,
+            clutch: false,
+            enable: false,
+            motion_scale: 1.0,
+        }
+    }
+}
+
 /// What opens the gate besides a live site, fresh input and a valid scale.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
