@@ -1,6 +1,25 @@
-# Sourced by the compose check scripts (check_security.sh, check_faults.sh) after they
-# set HERE: checks the environment test.sh exports, and defines IMAGE and `compose`.
+# Sourced by the compose check scripts (check_security.sh, check_faults.sh, sweep.sh)
+# after they set HERE: checks the environment test.sh exports, and defines IMAGE,
+# `compose` and `listen`.
 : "${COMPOSE_PROJECT_NAME:?}" "${TELEOP_CERTS:?}" "${TELEOP_REPORT_DIR:?}"
 IMAGE=${TELEOP_IMAGE:-teleop:local}
 if docker compose version >/dev/null 2>&1; then COMPOSE=(docker compose); else COMPOSE=(docker-compose); fi
 compose() { "${COMPOSE[@]}" -f "$HERE/docker-compose.yml" "$@"; }
+
+# A listener on a site LAN as the observer identity: `teleop topic echo` of each topic
+# given, as JSON lines, into $OUT/<tag>-<topic-dir>-<topic-name>.jsonl (OUT set by
+# the caller), for $3 seconds.
+listen() { # site tag seconds topic...
+  local site=$1 tag=$2 secs=$3
+  shift 3
+  local net router
+  if [[ $site == local ]]; then net=local_lan router=172.30.1.2; else net=remote_lan router=172.30.2.2; fi
+  local cmds=""
+  for t in "$@"; do
+    cmds+="teleop \$Z topic echo $t --format json --duration-s $secs >/out/$tag-$(basename "$(dirname "$t")")-$(basename "$t").jsonl 2>/dev/null & "
+  done
+  docker run -d --rm --label "com.docker.compose.project=$COMPOSE_PROJECT_NAME" \
+    --network "${COMPOSE_PROJECT_NAME}_$net" -v "$OUT:/out" -v "$TELEOP_CERTS:/certs:ro" "$IMAGE" \
+    sh -c "set -f; Z='--mode client --connect tls/$router:7447 --no-multicast-scouting --tls-ca /certs/ca.pem --tls-cert /certs/teleop-observer.pem --tls-key /certs/teleop-observer.key --hardware-interface *'; $cmds wait"
+}
+

@@ -17,6 +17,7 @@ use teleop_node::{FinalReport, Node, NodeConfig, SourceLock, check_controller_li
 use crate::arm_controller::{
     ArmCommand, ArmController, ArmControllerConfig, ArmInputs, ArmMode, OperatorSample, WristSample,
 };
+use crate::command_age::CommandAges;
 
 /// Configuration of the `pr2_arm_controller` node.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -85,6 +86,8 @@ pub struct ArmNode {
     rejected_frame_ids: u64,
     /// Wrist poses refused at receipt for a NaN or infinite value.
     rejected_non_finite: u64,
+    /// The wrist poses' ages when taken (none older than the deadline).
+    wrist_ages: CommandAges,
     hardware_ok: bool,
     last_error: String,
 }
@@ -97,9 +100,15 @@ impl ArmNode {
     pub async fn new(cfg: &ArmNodeConfig, bus: &Bus) -> anyhow::Result<Self> {
         let ctrl =
             ArmController::new(teleop_kinematics::robots::pr2_arm_chain()?, cfg.arm.clone())?;
+        let wrist_ages = CommandAges::new(
+            "wrist_pose",
+            "wrist_pose.sent_to_taken",
+            &bus.guard_settings(&topics::WRIST_POSE.spec),
+        );
         Ok(Self {
             operator_site_nodes: cfg.operator_site_nodes.clone(),
             commander: cfg.commander,
+            wrist_ages,
             wrist_sub: SourceLock::new(
                 bus.subscriber(&topics::WRIST_POSE).await?,
                 cfg.commander.release_after_s,
@@ -153,6 +162,17 @@ impl Node for ArmNode {
                 self.last_error = format!(
                     "wrist pose in frame `{}` refused: the absolute mode takes `{}` only",
                     r.msg.header.frame_id, cfg.absolute.frame_id
+                );
+            } else if !self.wrist_ages.admit(
+                now_s,
+                r.source_timestamp_ns as f64 * 1e-9,
+                r.publisher_gid,
+                r.sequence,
+            ) {
+                // Expired between receipt and this step: never executed.
+                self.last_error = format!(
+                    "wrist pose refused: older than {:.0} ms when taken",
+                    self.wrist_ages.limit_s() * 1e3
                 );
             } else {
                 self.wrist = Some(WristSample {
@@ -246,6 +266,7 @@ impl Node for ArmNode {
         counters.push(("arm.bad_hardware_states".into(), self.hw.bad_states()));
         counters.extend(self.wrist_sub.named_counters());
         counters.extend(self.input_sub.named_counters());
+        self.wrist_ages.named(&mut counters);
         counters
     }
 

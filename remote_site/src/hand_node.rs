@@ -18,6 +18,7 @@ use teleop_node::{
     FinalReport, LatencyHistogram, Node, NodeConfig, SourceLock, check_controller_links,
 };
 
+use crate::command_age::CommandAges;
 use crate::hand_controller::{HandSupervisor, HandSupervisorConfig};
 
 /// Configuration of the `shadow_hand_controller` node.
@@ -83,6 +84,8 @@ pub struct HandNode {
     /// Finger targets: the depth frame's capture (their stamp) -> received here, the
     /// operator site's whole chain as this site sees it.
     capture_to_received: LatencyHistogram,
+    /// The targets' ages when taken (none older than the deadline).
+    target_ages: CommandAges,
     last_error: String,
 }
 
@@ -120,6 +123,11 @@ impl HandNode {
             hardware_errors: 0,
             hardware_ok: false,
             capture_to_received: LatencyHistogram::new("targets.capture_to_received"),
+            target_ages: CommandAges::new(
+                "joint_targets",
+                "targets.sent_to_taken",
+                &bus.guard_settings(&topics::HAND_JOINT_TARGETS.spec),
+            ),
             last_error: String::new(),
         })
     }
@@ -142,11 +150,23 @@ impl Node for HandNode {
                 .disengaged(now_s, &mut [&mut self.target_sub, &mut self.input_sub]);
         }
         if let Some(r) = self.target_sub.poll() {
-            match self.hand.accept_target(&r.msg, r.receive_time_s()) {
-                Ok(()) => self
-                    .capture_to_received
-                    .record_s(r.receive_time_s() - r.msg.header.stamp.as_secs_f64()),
-                Err(e) => self.last_error = e.to_string(),
+            let sent_s = r.source_timestamp_ns as f64 * 1e-9;
+            if !self
+                .target_ages
+                .admit(now_s, sent_s, r.publisher_gid, r.sequence)
+            {
+                // Expired between receipt and this step: never executed.
+                self.last_error = format!(
+                    "finger targets refused: older than {:.0} ms when taken",
+                    self.target_ages.limit_s() * 1e3
+                );
+            } else {
+                match self.hand.accept_target(&r.msg, r.receive_time_s()) {
+                    Ok(()) => self
+                        .capture_to_received
+                        .record_s(r.receive_time_s() - r.msg.header.stamp.as_secs_f64()),
+                    Err(e) => self.last_error = e.to_string(),
+                }
             }
         }
         if let Some(r) = self.input_sub.poll() {
@@ -219,6 +239,7 @@ impl Node for HandNode {
         counters.extend(self.target_sub.named_counters());
         counters.extend(self.input_sub.named_counters());
         self.capture_to_received.named(&mut counters);
+        self.target_ages.named(&mut counters);
         counters
     }
 

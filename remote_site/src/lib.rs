@@ -13,6 +13,7 @@
 
 pub mod arm_controller;
 pub mod arm_node;
+pub mod command_age;
 pub mod feedback_node;
 pub mod gravity;
 pub mod hand_controller;

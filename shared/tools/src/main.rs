@@ -8,6 +8,7 @@ mod publish;
 mod record;
 mod report;
 mod router;
+mod sweep;
 
 use clap::{Parser, Subcommand};
 use teleop_node::ZenohArgs;
@@ -54,6 +55,9 @@ enum Command {
     Report(record::ReportArgs),
     /// Make a certificate authority and certificates for mutual TLS between the sites.
     Certs(certs::CertsArgs),
+    /// The WAN-condition sweep's table, plots and checks, from what
+    /// deploy/compose/sweep.sh recorded.
+    SweepReport(sweep::SweepArgs),
 }
 
 #[derive(Debug, Subcommand)]
@@ -133,5 +137,6 @@ async fn main() -> anyhow::Result<()> {
         Command::Router(args) => router::run(args, &cli.zenoh).await,
         Command::Report(args) => record::run(args, &cli.zenoh).await,
         Command::Certs(args) => certs::run(args),
+        Command::SweepReport(args) => sweep::run(&args),
     }
 }
