@@ -96,6 +96,11 @@ if [[ $BUILD == 1 ]]; then
   bash "$ROOT/deploy/docker/build-images.sh"
 fi
 
+# The build and the tests before this leave gigabytes of dirty pages; their writeback
+# during the task can stall the containers' log writes, and a node blocked on its log
+# delays a wrist pose past its deadline (suspected: a CI run with no other load still
+# stopped the PR2 on a 119 ms pose). Flushed first.
+sync
 NODES=(local-router wan-link remote-router robot-sim pc2-arm pc2-hand pc2-feedback
   pc1-wrist-tracker pc1-camera-arm pc1-hand-inference)
 compose up -d "${NODES[@]}"
