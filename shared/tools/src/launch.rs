@@ -328,6 +328,7 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
                 if run_once && reports_task_done(&r.msg) {
                     done_since.get_or_insert_with(tokio::time::Instant::now);
                 }
+                recorder.on_status(&r.msg);
                 log.record(r.msg);
             }
             recorder.poll();

@@ -80,6 +80,7 @@ pub async fn run(args: ReportArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
                     done_since.get_or_insert_with(tokio::time::Instant::now);
                 }
             }
+            recorder.on_status(&r.msg);
             latest.insert(r.msg.node_name.clone(), r.msg);
         }
         recorder.poll();

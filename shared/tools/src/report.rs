@@ -30,7 +30,9 @@ use teleop_interfaces::joints::PR2_ARM_JOINTS;
 use teleop_interfaces::topics;
 use teleop_kinematics::FixedChain;
 use teleop_local_site::camera_arm::CameraArmConfig;
-use teleop_msgs::{FingertipPressures, JointState, NodeStatus, OperatorInput, Pose, PoseStamped};
+use teleop_msgs::{
+    FingertipPressures, JointState, Lifecycle, NodeStatus, OperatorInput, Pose, PoseStamped,
+};
 
 /// One latency stage.
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -109,6 +111,13 @@ pub struct RunReport {
     pub camera_best_fit_delay_ms: f64,
     pub camera_error_at_best_delay_m: f64,
     pub clutch_engagements: u64,
+    /// The PR2 error of the clutched samples in which the arm controller's newest status
+    /// said it was Active (following the operator, not stopped), m: the tracking, apart
+    /// from what the operator moved while a safety stop held the arm.
+    pub pr2_following_error_m: ErrorSummary,
+    /// Fraction of the clutched samples in which the arm was following (1 without a
+    /// stop).
+    pub pr2_fraction_following: f64,
     /// The PR2 arm controller's stops by reason (its `arm.stop.*` counters): a stale
     /// input or a lost site stops the arm, and the error above then grows.
     pub pr2_stops: BTreeMap<String, u64>,
@@ -308,6 +317,10 @@ pub struct Recorder {
     pr2_abs: [f64; 3],
     pr2_n: usize,
     pr2_errors: Vec<f64>,
+    /// The clutched samples' errors while the arm controller was Active.
+    pr2_following: Vec<f64>,
+    /// Whether the arm controller's newest status says Active.
+    arm_active: bool,
     pr2_delay: DelayFit,
     camera_delay: DelayFit,
     camera_pos: Vec<f64>,
@@ -364,6 +377,8 @@ impl Recorder {
             pr2_abs: [0.0; 3],
             pr2_n: 0,
             pr2_errors: Vec::new(),
+            pr2_following: Vec::new(),
+            arm_active: false,
             pr2_delay: DelayFit::default(),
             camera_delay: DelayFit::default(),
             camera_pos: Vec::new(),
@@ -463,6 +478,9 @@ impl Recorder {
                 }
                 self.pr2_n += 1;
                 self.pr2_errors.push(err.norm());
+                if self.arm_active {
+                    self.pr2_following.push(err.norm());
+                }
                 let (truth, eng) = (&self.truth, *eng);
                 self.pr2_delay.add(|d| {
                     truth_at(truth, t - d).map(|h| {
@@ -529,6 +547,14 @@ impl Recorder {
         }
     }
 
+    /// A node's status as it arrives: the PR2 arm controller's lifecycle says whether
+    /// the arm follows the operator (Active) or is stopped.
+    pub fn on_status(&mut self, s: &NodeStatus) {
+        if s.node_name == "pr2_arm_controller" {
+            self.arm_active = s.lifecycle_state == Lifecycle::Active as u8;
+        }
+    }
+
     /// The report, with the final statuses of the nodes (`local_sim`'s frame counts,
     /// hand inference's stage timings).
     pub fn finish(mut self, now_s: f64, finals: &BTreeMap<String, NodeStatus>) -> RunReport {
@@ -547,6 +573,12 @@ impl Recorder {
         r.camera_position_error_m = ErrorSummary::of(&self.camera_pos);
         r.camera_direction_error_deg = ErrorSummary::of(&self.camera_dir);
         r.pr2_position_error_m = ErrorSummary::of(&self.pr2_errors);
+        r.pr2_following_error_m = ErrorSummary::of(&self.pr2_following);
+        r.pr2_fraction_following = if self.pr2_errors.is_empty() {
+            0.0
+        } else {
+            self.pr2_following.len() as f64 / self.pr2_errors.len() as f64
+        };
         if let Some((d, e)) = self.pr2_delay.best() {
             (r.pr2_best_fit_delay_ms, r.pr2_error_at_best_delay_m) = (d, e);
         }
@@ -713,6 +745,17 @@ impl RunReport {
             z * 100.0,
             p.samples
         );
+        if self.pr2_fraction_following < 1.0 && p.samples > 0 {
+            let f = &self.pr2_following_error_m;
+            let _ = writeln!(
+                s,
+                "  while the arm followed (Active, {:.0} % of the clutched samples): mean {:.1} cm, p99 {:.1} cm ({} samples)",
+                self.pr2_fraction_following * 100.0,
+                f.mean * 100.0,
+                f.p99 * 100.0,
+                f.samples
+            );
+        }
         let _ = writeln!(
             s,
             "  delay: the palm matches the operator's motion best {:.0} ms earlier (mean error there {:.1} cm); the camera its goal {:.0} ms earlier ({:.1} cm)",

@@ -628,15 +628,25 @@ pub fn write_png(results: &[ConditionResult], path: &Path) -> anyhow::Result<()>
                 .filter_map(|(i, v)| v.map(|v| (SegmentValue::CenterOf(i), v)))
                 .collect();
             let style = ShapeStyle::from(&color).stroke_width(if dashed { 1 } else { 2 });
-            let drawn = if dashed {
-                chart.draw_series(DashedLineSeries::new(pts.clone(), 8, 6, style))
-            } else {
-                chart.draw_series(LineSeries::new(pts.clone(), style))
+            // Lines join neighbouring conditions only: a condition without a value
+            // breaks the line.
+            for (k, run) in runs(&values).into_iter().enumerate() {
+                let run: Vec<(SegmentValue<usize>, f64)> = run
+                    .into_iter()
+                    .map(|(i, v)| (SegmentValue::CenterOf(i), v))
+                    .collect();
+                let drawn = if dashed {
+                    chart.draw_series(DashedLineSeries::new(run, 8, 6, style))
+                } else {
+                    chart.draw_series(LineSeries::new(run, style))
+                }
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
+                if k == 0 {
+                    drawn
+                        .label(legend.clone())
+                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+                }
             }
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
-            drawn
-                .label(legend)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
             chart
                 .draw_series(
                     pts.iter()
@@ -654,6 +664,23 @@ pub fn write_png(results: &[ConditionResult], path: &Path) -> anyhow::Result<()>
     }
     root.present().map_err(|e| anyhow::anyhow!("{e}"))?;
     Ok(())
+}
+
+/// The values' runs of neighbouring conditions that have one: `(index, value)`.
+fn runs(values: &[Option<f64>]) -> Vec<Vec<(usize, f64)>> {
+    let mut out: Vec<Vec<(usize, f64)>> = Vec::new();
+    let mut current = Vec::new();
+    for (i, v) in values.iter().enumerate() {
+        match v {
+            Some(v) => current.push((i, *v)),
+            None if !current.is_empty() => out.push(std::mem::take(&mut current)),
+            None => {}
+        }
+    }
+    if !current.is_empty() {
+        out.push(current);
+    }
+    out
 }
 
 /// Reads every condition under `args.dir`, writes the table, JSON and plots, prints the
@@ -748,6 +775,13 @@ mod tests {
         let a: Vec<Arrival> = (0..11).map(|i| pose(0.0, f64::from(i) * 0.1)).collect();
         assert!((rate_hz(&a) - 10.0).abs() < 1e-9);
         assert_eq!(rate_hz(&a[..1]), 0.0);
+    }
+
+    #[test]
+    fn lines_break_where_a_condition_has_no_value() {
+        let r = runs(&[Some(1.0), Some(2.0), None, Some(3.0), None, None]);
+        assert_eq!(r, vec![vec![(0, 1.0), (1, 2.0)], vec![(3, 3.0)]]);
+        assert!(runs(&[None]).is_empty());
     }
 
     #[test]
