@@ -1,10 +1,12 @@
 # Sourced by the compose check scripts (check_security.sh, check_faults.sh, sweep.sh)
-# after they set HERE: checks the environment test.sh exports, and defines IMAGE,
-# `compose` and `listen`.
+# and by test.sh, after they set HERE: checks the environment test.sh exports, and
+# defines IMAGE, `compose`, `listen` and `link`.
 : "${COMPOSE_PROJECT_NAME:?}" "${TELEOP_CERTS:?}" "${TELEOP_REPORT_DIR:?}"
 IMAGE=${TELEOP_IMAGE:-teleop:local}
 if docker compose version >/dev/null 2>&1; then COMPOSE=(docker compose); else COMPOSE=(docker-compose); fi
 compose() { "${COMPOSE[@]}" -f "$HERE/docker-compose.yml" "$@"; }
+# The WAN link emulator's control port (wan_link ctl): set, partition, reset, show.
+link() { compose exec -T wan-link wan_link ctl --control 127.0.0.1:7500 "$@"; }
 
 # A listener on a site LAN as the observer identity: `teleop topic echo` of each topic
 # given, as JSON lines, into $OUT/<tag>-<topic-dir>-<topic-name>.jsonl (OUT set by

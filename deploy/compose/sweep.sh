@@ -55,7 +55,6 @@ esac
 
 # Every node runs (check_security.sh, run by hand before, leaves the commanders stopped).
 compose start pc1-wrist-tracker pc1-hand-inference >/dev/null 2>&1 || true
-link() { compose exec -T wan-link wan_link ctl --control 127.0.0.1:7500 "$@"; }
 i=0
 for c in "${CONDITIONS[@]}"; do
   name=${c%%|*}

@@ -85,7 +85,9 @@ export TELEOP_REPORT_DIR TELEOP_CERTS
 TELEOP_REPORT_DIR=$(mktemp -d /tmp/teleop-compose-report.XXXXXX)
 # The deployment's certificates: made by the compose file's one-shot `certs` service.
 TELEOP_CERTS=$TELEOP_REPORT_DIR/certs
-compose() { "${COMPOSE[@]}" -f "$HERE/docker-compose.yml" "$@"; }
+# IMAGE, `compose`, `listen` and `link`, as the check scripts have them.
+# shellcheck source=checks-common.sh
+source "$HERE/checks-common.sh"
 teardown() {
   compose --profile report down -v --remove-orphans --timeout 15 >/dev/null 2>&1 || true
 }
@@ -134,7 +136,6 @@ python3 "$HERE/check_report.py" "$TELEOP_REPORT_DIR/report.json"
 # Hardware topics stay on their site: a listener on the robot's LAN hears the PR2's
 # encoders, one on the operator's LAN (through its router, across the wan) does not,
 # though it hears the PR2's joint states that the feedback publisher sends across.
-IMAGE=${TELEOP_IMAGE:-teleop:local}
 # Probes run as the deployment's observer identity (may watch, never publish).
 OBSERVER=(--tls-ca /certs/ca.pem --tls-cert /certs/teleop-observer.pem
   --tls-key /certs/teleop-observer.key)
@@ -155,7 +156,6 @@ fi
 
 # Every byte between the sites went through the link emulator, both ways; a partition
 # cuts the operator's site off the robot's feedback, and it comes back after.
-link() { compose exec -T wan-link wan_link ctl --control 127.0.0.1:7500 "$@"; }
 shown=$(link show)
 echo "compose test: wan-link: $shown"
 up=$(sed -n 's/.* up_bytes=\([0-9]*\).*/\1/p' <<<"$shown")

@@ -41,15 +41,7 @@ pub struct ReportArgs {
 /// Whether `s` is the operator-site simulator saying its task has run once (`teleop
 /// launch --task` and `teleop report --until-task-done` stop 1 s after it).
 pub fn reports_task_done(s: &NodeStatus) -> bool {
-    s.node_name == LOCAL_SIM && counter(s, "sim.task_repetitions").is_some_and(|n| n >= 1)
-}
-
-/// A counter of a status, by name.
-fn counter(s: &NodeStatus, name: &str) -> Option<u64> {
-    s.counter_names
-        .iter()
-        .position(|n| n == name)
-        .and_then(|i| s.counter_values.get(i).copied())
+    s.node_name == LOCAL_SIM && s.counter("sim.task_repetitions").is_some_and(|n| n >= 1)
 }
 
 pub async fn run(args: ReportArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {

@@ -551,7 +551,7 @@ impl Recorder {
     /// the arm follows the operator (Active) or is stopped.
     pub fn on_status(&mut self, s: &NodeStatus) {
         if s.node_name == "pr2_arm_controller" {
-            self.arm_active = s.lifecycle_state == Lifecycle::Active as u8;
+            self.arm_active = s.lifecycle() == Some(Lifecycle::Active);
         }
     }
 

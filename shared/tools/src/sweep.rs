@@ -26,6 +26,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use serde::Serialize;
 use serde_json::Value;
+use teleop_msgs::{Lifecycle, NodeStatus};
 
 /// How long after a fresh wrist pose the arm may still be Active: its pose deadline
 /// (`pose_deadline_s`, 0.1 s) plus the status's own delay on the LAN.
@@ -155,37 +156,21 @@ fn rate_hz(a: &[Arrival]) -> f64 {
     }
 }
 
-/// One node's statuses, in order: (sent time, lifecycle, counters).
+/// One status as the robot LAN's listener recorded it: when it was sent, and the message.
 struct Status {
     sent_s: f64,
-    lifecycle: u64,
-    counters: Vec<(String, u64)>,
+    msg: NodeStatus,
 }
 
-impl Status {
-    fn counter(&self, name: &str) -> Option<u64> {
-        self.counters
-            .iter()
-            .find(|(n, _)| n == name)
-            .map(|(_, v)| *v)
-    }
-}
-
+/// `node`'s statuses in the recording, in the order they were sent.
 fn statuses(all: &[Value], node: &str) -> Vec<Status> {
     let mut out: Vec<Status> = all
         .iter()
         .filter(|v| v.get("node_name").and_then(Value::as_str) == Some(node))
         .filter_map(|v| {
-            let names = v.get("counter_names")?.as_array()?;
-            let values = v.get("counter_values")?.as_array()?;
             Some(Status {
                 sent_s: num(v, &["_meta", "sent_s"])?,
-                lifecycle: v.get("lifecycle_state")?.as_u64()?,
-                counters: names
-                    .iter()
-                    .zip(values)
-                    .filter_map(|(n, x)| Some((n.as_str()?.to_owned(), x.as_u64()?)))
-                    .collect(),
+                msg: serde_json::from_value(v.clone()).ok()?,
             })
         })
         .collect();
@@ -193,8 +178,8 @@ fn statuses(all: &[Value], node: &str) -> Vec<Status> {
     out
 }
 
-/// Increase of the counters whose names start with `prefix` from the first status to
-/// the last (a restarted node's counters start again: then the last value).
+/// Increase of the counters `names` (summed) from the first status to the last (a
+/// restarted node's counters start again: then the last value).
 fn increase(s: &[Status], names: &[&str]) -> u64 {
     let (Some(first), Some(last)) = (s.first(), s.last()) else {
         return 0;
@@ -202,13 +187,14 @@ fn increase(s: &[Status], names: &[&str]) -> u64 {
     names
         .iter()
         .map(|n| {
-            let (a, b) = (first.counter(n).unwrap_or(0), last.counter(n).unwrap_or(0));
+            let (a, b) = (
+                first.msg.counter(n).unwrap_or(0),
+                last.msg.counter(n).unwrap_or(0),
+            );
             if b >= a { b - a } else { b }
         })
         .sum()
 }
-
-const ACTIVE: u64 = 2;
 
 /// Active statuses not preceded by a fresh command within `window_s`: (count of
 /// Active statuses, those without).
@@ -218,7 +204,10 @@ fn active_without_fresh(
     limit_s: f64,
     window_s: f64,
 ) -> (usize, Vec<f64>) {
-    let active: Vec<&Status> = status.iter().filter(|s| s.lifecycle == ACTIVE).collect();
+    let active: Vec<&Status> = status
+        .iter()
+        .filter(|s| s.msg.lifecycle() == Some(Lifecycle::Active))
+        .collect();
     let bad = active
         .iter()
         .filter(|s| {
@@ -247,10 +236,10 @@ fn executed_checks(
         });
         return (None, None);
     };
-    let age = last.counter(&format!("{topic}.executed_max_age_us"));
-    let limit = last.counter(&format!("{topic}.execute_limit_us"));
-    let taken = last.counter(&format!("{topic}.executed")).unwrap_or(0);
-    let ooo = last.counter(&format!("{topic}.executed_out_of_order"));
+    let age = last.msg.counter(&format!("{topic}.executed_max_age_us"));
+    let limit = last.msg.counter(&format!("{topic}.execute_limit_us"));
+    let taken = last.msg.counter(&format!("{topic}.executed")).unwrap_or(0);
+    let ooo = last.msg.counter(&format!("{topic}.executed_out_of_order"));
     match (age, limit) {
         (Some(a), Some(l)) => checks.push(Check {
             name: format!("{node}: no {topic} older than its deadline executed"),
@@ -740,11 +729,16 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
 mod tests {
     use super::*;
 
-    fn status(t: f64, lifecycle: u64) -> Status {
+    fn status(t: f64, lifecycle: Lifecycle, counter: (&str, u64)) -> Status {
         Status {
             sent_s: t,
-            lifecycle,
-            counters: vec![("arm.engagements".into(), 1)],
+            msg: NodeStatus {
+                node_name: "pr2_arm_controller".into(),
+                lifecycle_state: lifecycle as u8,
+                counter_names: vec![counter.0.into()],
+                counter_values: vec![counter.1],
+                ..NodeStatus::default()
+            },
         }
     }
 
@@ -758,7 +752,12 @@ mod tests {
 
     #[test]
     fn active_needs_a_fresh_command_shortly_before() {
-        let s = [status(10.0, ACTIVE), status(11.0, 1), status(12.0, ACTIVE)];
+        let e = ("arm.engagements", 1);
+        let s = [
+            status(10.0, Lifecycle::Active, e),
+            status(11.0, Lifecycle::Inactive, e),
+            status(12.0, Lifecycle::Active, e),
+        ];
         // Fresh before the first, only a late one before the third.
         let c = [pose(9.94, 9.95), pose(11.7, 11.95)];
         let (n, bad) = active_without_fresh(&s, &c, 0.12, 0.15);
@@ -786,11 +785,7 @@ mod tests {
 
     #[test]
     fn counters_increase_across_a_restart() {
-        let mk = |v| Status {
-            sent_s: 0.0,
-            lifecycle: 1,
-            counters: vec![("x".into(), v)],
-        };
+        let mk = |v| status(0.0, Lifecycle::Inactive, ("x", v));
         assert_eq!(increase(&[mk(5), mk(9)], &["x"]), 4);
         assert_eq!(increase(&[mk(5), mk(2)], &["x"]), 2);
         assert_eq!(increase(&[], &["x"]), 0);
