@@ -181,7 +181,53 @@ fn only_the_routers_and_the_link_emulator_join_the_wan_and_hardware_stays_off_it
     .unwrap();
     // The local router dials the remote site by name; on the WAN that name is the
     // link emulator, which listens on the address it forwards from.
-    assert_eq!(local.bus.zenoh.connect, ["tls/remote-site.wan:7447"]);
+    // Its WAN link keeps the kernel's buffers small, so a slow WAN's backlog waits in
+    // Zenoh's priority queues (docs/network.md); so does the remote router's WAN
+    // listener, whose links also carry 16 KiB batches.
+    let small = "#so_sndbuf=16384;so_rcvbuf=16384";
+    assert_eq!(
+        local.bus.zenoh.connect,
+        [format!("tls/remote-site.wan:7447{small}")]
+    );
+    let remote: teleop_node::router::RouterConfig = teleop_node::config::load_checked(
+        &repo_root().join("deploy/compose/config/remote-router/router.toml"),
+    )
+    .unwrap();
+    assert!(
+        remote
+            .bus
+            .zenoh
+            .listen
+            .contains(&format!("tls/172.30.9.2:7447{small}")),
+        "{:?}",
+        remote.bus.zenoh.listen
+    );
+    assert_eq!(remote.bus.zenoh.batch_bytes, Some(16_384));
+    // Zenoh takes those endpoints and settings, and the remote router's Zenoh file
+    // (deeper queues for the feedback's priorities, views dropped at once rather than
+    // holding the router's reading of their link): the file is the container's
+    // /etc/teleop one, the certificates and the site's interfaces are left out here.
+    let file = remote.bus.zenoh.config_file.clone().unwrap();
+    let in_repo = repo_root()
+        .join("deploy/compose/config")
+        .join(file.strip_prefix("/etc/teleop/").unwrap());
+    for (z, file) in [(&local.bus.zenoh, None), (&remote.bus.zenoh, Some(in_repo))] {
+        let mut z = z.clone();
+        z.tls = None;
+        z.hardware_interfaces = vec!["*".into()];
+        z.config_file = file;
+        let cfg = z.to_zenoh().unwrap();
+        if z.config_file.is_some() {
+            let q = cfg.get_json("transport/link/tx/queue").unwrap();
+            let q: serde_json::Value = serde_json::from_str(&q).unwrap();
+            assert_eq!(q["size"]["interactive_high"], 16, "{q}");
+            assert_eq!(q["size"]["real_time"], 16, "{q}");
+            assert_eq!(
+                q["congestion_control"]["drop"]["max_wait_before_drop_fragments"], 1000,
+                "{q}"
+            );
+        }
+    }
     let wan_link = &services[&serde_yaml::Value::from("wan-link")];
     let on_wan = &wan_link["networks"]["wan_local"];
     assert_eq!(strings(&on_wan["aliases"]), ["remote-site.wan"]);

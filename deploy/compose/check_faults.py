@@ -22,8 +22,6 @@ SETTLE_S = 0.6
 # ... and as moving before the kill when some joint moved faster than this.
 MOVING_ABOVE_RAD_S = 0.03
 
-LOCAL_NODES = ["wrist_tracker", "camera_arm", "hand_inference", "local_sim"]
-REMOTE_NODES = ["pr2_arm_controller", "shadow_hand_controller", "feedback_publisher", "remote_sim"]
 
 # How a robot must behave while the container is gone:
 #   "stop": no joint faster than STOPPED_BELOW_RAD_S from SETTLE_S after the kill (the
@@ -44,8 +42,11 @@ HOLD_WINDOW_S = 0.25
 HOLD_DRIFT_RAD = 0.3
 DISPLACEMENT_RAD = 0.05
 
-# service -> (node whose status shows it is back, or "site:<site>" whose nodes' status
-# must cross the WAN again; robots: (recording, mode, must have been moving)).
+# service -> (node whose status shows it is back, or for a router "site:<site>": its
+# site's stream across the WAN heard again at the other site, the operator's wrist
+# poses (320 Hz) at the robot's, the PR2's joint states (100 Hz) at the operator's;
+# the nodes' statuses come once a second, too coarse for a 1 s bound; robots:
+# (recording, mode, must have been moving)).
 SERVICES = {
     "pc1-wrist-tracker": ("wrist_tracker", [("r-pr2_arm-state", "stop", True),
                                             ("l-ur5-state", "stop", True)]),
@@ -169,12 +170,12 @@ def main():
 
     if back_by.startswith("site:"):
         site = back_by.split(":")[1]
-        nodes = LOCAL_NODES if site == "local" else REMOTE_NODES
         # Heard at the other site: across the WAN.
-        other = lines(d / f"{tag}-{'r' if site == 'local' else 'l'}-teleop-status.jsonl")
-        seen = [s["_meta"]["received_s"] for s in other
-                if s["node_name"] in nodes and s["_meta"]["received_s"] > running]
-        what = f"the {site} site's nodes heard across the WAN again"
+        rec, stream = (("r-teleop-wrist_pose", "the wrist poses at the robot site")
+                       if site == "local" else
+                       ("l-pr2-joint_states", "the PR2 joint states at the operator site"))
+        seen = [t_of(s) for s in lines(d / f"{tag}-{rec}.jsonl") if t_of(s) > running]
+        what = f"the {site} site heard across the WAN again ({stream})"
     else:
         seen = [s["_meta"]["received_s"] for s in statuses
                 if s["node_name"] == back_by and s["_meta"]["received_s"] > running]

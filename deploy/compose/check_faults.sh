@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Fault tests against a running compose system (by hand for now: not yet a step of
-# deploy/compose/test.sh): each container in turn is killed (SIGKILL: a crash,
+# Fault tests against a running compose system (a step of deploy/compose/test.sh; by
+# hand against any running stack): each container in turn is killed (SIGKILL: a crash,
 # a pulled plug) during a clutched motion and started again 2.5 s later. Listeners on
 # both site LANs record every node's status and the robots' joint states; for each
 # container check_faults.py checks:
@@ -9,8 +9,9 @@
 #   * the robots its commands drive stopped while it was gone (a controller's robot
 #     brakes in the hardware safety layer; a commander's robot is stopped by its
 #     controller's watchdogs);
-#   * it reconnected: its status (for a router: its site's nodes' status across the
-#     WAN) reached the other site again within 1 s of the container running again.
+#   * it reconnected: its status (for a router: its site's stream across the WAN, the
+#     wrist poses or the PR2 joint states) reached the other site again within 1 s of
+#     the container running again.
 #
 #   check_faults.sh [SERVICE...]     (default: every node container and both routers)
 #
@@ -29,12 +30,15 @@ fi
 ALL=(local-router wan-link remote-router robot-sim pc2-arm pc2-hand pc2-feedback
   pc1-wrist-tracker pc1-camera-arm pc1-hand-inference pc3-local-sim)
 
+# Every node runs, and the link is clear (an earlier step may have left either).
+compose start pc1-wrist-tracker pc1-hand-inference >/dev/null 2>&1 || true
+link reset >/dev/null
 failed=()
 for s in "${SERVICES[@]}"; do
   tag=$s
   rm -f "$OUT/$tag"-*.jsonl
-  ids=$(listen remote "$tag-r" 32 /teleop/status /teleop/hw/pr2_arm/state /teleop/hw/shadow_hand/state
-    listen local "$tag-l" 32 /teleop/status /teleop/hw/ur5/state)
+  ids=$(listen remote "$tag-r" 32 /teleop/status /teleop/hw/pr2_arm/state /teleop/hw/shadow_hand/state /teleop/wrist_pose
+    listen local "$tag-l" 32 /teleop/status /teleop/hw/ur5/state /teleop/pr2/joint_states)
   sleep 1.5
   # The task from its start: the operator presses the clutch 2 s in.
   compose restart -t 5 pc3-local-sim >/dev/null 2>&1

@@ -7,10 +7,13 @@
 # container, network or volume behind.
 #
 #   deploy/compose/test.sh [--no-build] [--skip-without-docker] [--sweep=reduced|full|none]
+#                          [--no-faults]
 #
 # --sweep: the WAN-condition sweep at the end (deploy/compose/sweep.sh): the reduced
-# set by default (5 conditions, about 3 minutes), the full one (12, about 8 minutes:
+# set by default (6 conditions, about 4 minutes), the full one (12, about 8 minutes:
 # the figures of docs/network.md), or none.
+# --no-faults: leave out the kill-and-restart of the containers (check_faults.sh,
+# about 5 minutes).
 #
 # Without a Docker engine and Compose it says so and fails, unless
 # --skip-without-docker (or TELEOP_SKIP_DOCKER=1) is given.
@@ -21,9 +24,11 @@ ROOT=$(cd "$HERE/../.." && pwd)
 BUILD=1
 SKIP=${TELEOP_SKIP_DOCKER:-0}
 SWEEP=${TELEOP_SWEEP:-reduced}
+FAULTS=1
 for a in "$@"; do
   case $a in
     --no-build) BUILD=0 ;;
+    --no-faults) FAULTS=0 ;;
     --sweep=*) SWEEP=${a#--sweep=} ;;
     --skip-without-docker) SKIP=1 ;;
     *) echo "compose test: unknown option $a"; exit 2 ;;
@@ -213,6 +218,17 @@ cut_test pause "compose pause pc1-wrist-tracker" "compose unpause pc1-wrist-trac
 if [[ $SWEEP != none ]]; then
   bash "$HERE/sweep.sh" "$SWEEP"
   echo "compose test: sweep table and plots in $TELEOP_REPORT_DIR/sweep (sweep.md, sweep.png)"
+fi
+
+# Each container killed during a clutched motion and started again 2.5 s later: the
+# others keep running, its robots stop while it is gone, it is heard again within 1 s
+# (check_faults.sh; about 5 minutes). Not the two that drive the Shadow hand: with
+# either gone the fingers' chatter about the held posture (the hand controller's open
+# problem, docs/remote-site.md) fails the hand's still-or-held criterion in by-hand
+# runs (docs/deployment.md).
+if [[ $FAULTS == 1 ]]; then
+  bash "$HERE/check_faults.sh" pc1-wrist-tracker pc1-camera-arm pc3-local-sim pc2-arm \
+    pc2-feedback robot-sim local-router remote-router
 fi
 
 # Security between the sites: who cannot connect, who cannot command, what the robot

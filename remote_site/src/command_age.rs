@@ -39,9 +39,9 @@ impl CommandAges {
     /// its clock tolerance (no limit when the topic has no deadline).
     #[must_use]
     pub fn new(prefix: &'static str, latency_name: &'static str, guard: &GuardSettings) -> Self {
-        let limit_s = guard.deadline_ns.map_or(f64::INFINITY, |d| {
-            d.saturating_add(guard.clock_tolerance_ns) as f64 * 1e-9
-        });
+        let limit_s = guard
+            .max_age_ns()
+            .map_or(f64::INFINITY, |a| a as f64 * 1e-9);
         Self {
             prefix,
             limit_s,

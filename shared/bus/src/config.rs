@@ -62,6 +62,36 @@ pub struct ZenohSettings {
     /// present a certificate of the same authority, and a router's access control
     /// knows the peer by the certificate's common name (docs/security.md).
     pub tls: Option<TlsSettings>,
+    /// Zenoh's batch size on this session's links, bytes: its largest frame, the
+    /// smaller of the two ends' values on each link. A large message (a camera view)
+    /// goes in fragments of this size, and a message of a higher priority can go
+    /// between two of them, so on a slow link a smaller batch lets the feedback
+    /// overtake the views sooner. `None`: Zenoh's default, 65535. The robot site's
+    /// router, which sends the views across the WAN, sets it (docs/network.md).
+    pub batch_bytes: Option<u16>,
+    /// How soon a lost connection (to the site router, or a router's to the other
+    /// site) is dialled again.
+    pub reconnect: ReconnectSettings,
+}
+
+/// The redial schedule after a connection is lost or refused: the first attempt
+/// `first_ms` after, then twice as long each time, at most `max_ms` apart (Zenoh's
+/// `connect/retry`; its own default, 1 s to 4 s, finds a restarted router up to 4 s
+/// late).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ReconnectSettings {
+    pub first_ms: u64,
+    pub max_ms: u64,
+}
+
+impl Default for ReconnectSettings {
+    fn default() -> Self {
+        Self {
+            first_ms: 100,
+            max_ms: 500,
+        }
+    }
 }
 
 /// Certificate files (PEM) of a mutually authenticated TLS session.
@@ -88,6 +118,8 @@ impl Default for ZenohSettings {
             config_file: None,
             hardware_interfaces: vec!["lo".into()],
             tls: None,
+            batch_bytes: None,
+            reconnect: ReconnectSettings::default(),
         }
     }
 }
@@ -143,6 +175,11 @@ pub enum ConfigError {
         field: &'static str,
         message: String,
     },
+    #[error("{field} {message}")]
+    OutOfRange {
+        field: &'static str,
+        message: String,
+    },
 }
 
 impl ZenohSettings {
@@ -193,6 +230,32 @@ impl ZenohSettings {
         // (docs/benchmarks.md, bus section). Memory cost: up to 1 MiB per link.
         set("transport/link/tx/queue/size/data_low", "16".into())?;
         set("transport/link/rx/buffer_size", "1048576".into())?;
+        if let Some(b) = self.batch_bytes {
+            if b < 1024 {
+                return Err(ConfigError::OutOfRange {
+                    field: "batch_bytes",
+                    message: format!("must be in [1024, 65535], got {b}"),
+                });
+            }
+            set("transport/link/tx/batch_size", b.to_string())?;
+        }
+        let r = self.reconnect;
+        if !(10..=60_000).contains(&r.first_ms) || !(r.first_ms..=60_000).contains(&r.max_ms) {
+            return Err(ConfigError::OutOfRange {
+                field: "reconnect",
+                message: format!(
+                    "first_ms must be in [10, 60000] and max_ms in [first_ms, 60000], got {} and {}",
+                    r.first_ms, r.max_ms
+                ),
+            });
+        }
+        set(
+            "connect/retry",
+            format!(
+                "{{period_init_ms: {}, period_max_ms: {}, period_increase_factor: 2.0}}",
+                r.first_ms, r.max_ms
+            ),
+        )?;
         if let Some(tls) = &self.tls {
             tls.check_endpoints(&self.connect, self.listened())?;
             let ca = tls.file("ca_certificate", &tls.ca_certificate)?;
@@ -449,5 +512,56 @@ mod tests {
         };
         let e = s.to_zenoh().expect_err("missing file");
         assert!(e.to_string().contains("/nonexistent/zenoh.json5"), "{e}");
+    }
+
+    #[test]
+    fn batch_size_and_redial_schedule_reach_zenoh_and_bad_ones_are_named() {
+        let s = ZenohSettings {
+            batch_bytes: Some(16_384),
+            reconnect: ReconnectSettings {
+                first_ms: 50,
+                max_ms: 400,
+            },
+            ..Default::default()
+        };
+        let cfg = s.to_zenoh().expect("valid");
+        let json = |key: &str| cfg.get_json(key).expect(key);
+        assert_eq!(json("transport/link/tx/batch_size"), "16384");
+        let retry: serde_json::Value = serde_json::from_str(&json("connect/retry")).expect("json");
+        assert_eq!(retry["period_init_ms"], 50);
+        assert_eq!(retry["period_max_ms"], 400);
+        // The default redials within half a second.
+        let cfg = ZenohSettings::default().to_zenoh().expect("valid");
+        let retry: serde_json::Value =
+            serde_json::from_str(&cfg.get_json("connect/retry").expect("retry")).expect("json");
+        assert_eq!(retry["period_max_ms"], 500);
+        for (bad, named) in [
+            (
+                ZenohSettings {
+                    batch_bytes: Some(100),
+                    ..Default::default()
+                },
+                "batch_bytes",
+            ),
+            (
+                ZenohSettings {
+                    reconnect: ReconnectSettings {
+                        first_ms: 500,
+                        max_ms: 100,
+                    },
+                    ..Default::default()
+                },
+                "reconnect",
+            ),
+        ] {
+            let e = bad.to_zenoh().expect_err(named).to_string();
+            assert!(e.contains(named), "{e}");
+        }
+        // Unknown fields in the file are refused.
+        let e = serde_json::from_str::<ZenohSettings>(
+            r#"{"reconnect": {"first_ms": 10, "soon": true}}"#,
+        )
+        .expect_err("unknown field");
+        assert!(e.to_string().contains("soon"), "{e}");
     }
 }

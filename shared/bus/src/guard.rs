@@ -19,6 +19,17 @@ pub struct GuardSettings {
     pub clock_tolerance_ns: i64,
 }
 
+impl GuardSettings {
+    /// The oldest a sample may be and still be taken: the deadline plus the clock
+    /// tolerance, ns (`None`: no deadline). The guard judges receipt by it; a
+    /// consumer that acts on a sample later re-checks its age against the same limit.
+    #[must_use]
+    pub fn max_age_ns(&self) -> Option<i64> {
+        self.deadline_ns
+            .map(|d| d.saturating_add(self.clock_tolerance_ns))
+    }
+}
+
 /// What the guard decided about one sample.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Verdict {
@@ -68,8 +79,8 @@ impl ReceiveGuard {
         if -age_ns > self.settings.clock_tolerance_ns {
             return Verdict::FromFuture { ahead_ns: -age_ns };
         }
-        if let Some(deadline) = self.settings.deadline_ns
-            && age_ns > deadline.saturating_add(self.settings.clock_tolerance_ns)
+        if let Some(max_age) = self.settings.max_age_ns()
+            && age_ns > max_age
         {
             return Verdict::Stale { age_ns };
         }

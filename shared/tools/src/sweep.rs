@@ -33,6 +33,10 @@ use teleop_msgs::{Lifecycle, NodeStatus};
 const ARM_ACTIVE_AFTER_POSE_S: f64 = 0.1 + 0.05;
 /// The same for the hand: its command timeout (`command_timeout_s`, 0.2 s) + 0.05 s.
 const HAND_ACTIVE_AFTER_TARGETS_S: f64 = 0.2 + 0.05;
+/// The smallest bandwidth cap under which the camera views must give way to the
+/// feedback: above what the feedback topics need on their own (docs/network.md), below
+/// a camera view's rate (27.6 Mbit/s), so something must be dropped.
+const GIVE_WAY_MIN_MBIT: f64 = 2.0;
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct SweepArgs {
@@ -88,6 +92,9 @@ pub struct ConditionResult {
     pub frame_to_command: Spread,
     /// PR2 joints -> operator site (the report's feedback stage).
     pub feedback: Spread,
+    /// How old the operator site's newest PR2 joint state was just before each next
+    /// one arrived (the listener on the operator's LAN): its latency plus the gap.
+    pub feedback_staleness: Spread,
     /// One remote camera view at the operator site, Hz.
     pub camera_view_rate_hz: f64,
     /// PR2 tracking error while clutched (mean, m) and its sample count.
@@ -285,6 +292,8 @@ pub fn condition(dir: &Path) -> anyhow::Result<ConditionResult> {
     let wrist = arrivals(&dir.join("r-teleop-wrist_pose.jsonl"))?;
     let targets = arrivals(&dir.join("r-hand-joint_targets.jsonl"))?;
     let camera = arrivals(&dir.join("l-top-image.jsonl"))?;
+    let pr2_at_operator = arrivals(&dir.join("l-pr2-joint_states.jsonl"))?;
+    let feedback_staleness = Spread::of_seconds(staleness_s(&pr2_at_operator));
     let status = read_jsonl(&dir.join("r-teleop-status.jsonl"))?;
     let arm = statuses(&status, "pr2_arm_controller");
     let hand = statuses(&status, "shadow_hand_controller");
@@ -347,6 +356,25 @@ pub fn condition(dir: &Path) -> anyhow::Result<ConditionResult> {
         HAND_ACTIVE_AFTER_TARGETS_S,
     );
 
+    let camera_view_rate_hz = rate_hz(&camera);
+    if let Some(cap) = rate_cap_mbit(&settings)
+        && cap >= GIVE_WAY_MIN_MBIT
+    {
+        let spec = &teleop_interfaces::topics::PR2_JOINT_STATES.spec;
+        #[allow(clippy::cast_precision_loss)]
+        let deadline_ms = spec.deadline_ms.unwrap_or(0) as f64;
+        checks.push(Check {
+            name: "camera views give way to the PR2 feedback".into(),
+            ok: feedback_staleness.samples > 100 && feedback_staleness.p99_ms <= deadline_ms,
+            detail: format!(
+                "the operator site's newest PR2 joint state was {:.0} ms old at p99 (median {:.0} ms, {} arrivals; its deadline {deadline_ms:.0} ms); the camera view came at {camera_view_rate_hz:.1} Hz",
+                feedback_staleness.p99_ms,
+                feedback_staleness.p50_ms,
+                feedback_staleness.samples,
+            ),
+        });
+    }
+
     Ok(ConditionResult {
         name,
         settings,
@@ -360,7 +388,8 @@ pub fn condition(dir: &Path) -> anyhow::Result<ConditionResult> {
             targets.iter().map(|a| a.received_s - a.stamp_s).collect(),
         ),
         feedback,
-        camera_view_rate_hz: rate_hz(&camera),
+        feedback_staleness,
+        camera_view_rate_hz,
         pr2_error_mean_m: (pr2_samples > 0)
             .then(|| num(&report, &["pr2_position_error_m", "mean"]))
             .flatten(),
@@ -387,6 +416,23 @@ pub fn condition(dir: &Path) -> anyhow::Result<ConditionResult> {
     })
 }
 
+/// Before each arrival after the first, how old the newest state the receiver held
+/// was: the arrival time minus the previous sample's stamp, s (in arrival order).
+fn staleness_s(a: &[Arrival]) -> Vec<f64> {
+    a.windows(2)
+        .map(|w| w[1].received_s - w[0].stamp_s)
+        .collect()
+}
+
+/// The bandwidth cap of a condition's link settings (`rate_mbit=R`, 0 = none), Mbit/s.
+fn rate_cap_mbit(settings: &str) -> Option<f64> {
+    settings
+        .split_whitespace()
+        .find_map(|kv| kv.strip_prefix("rate_mbit="))
+        .and_then(|v| v.parse::<f64>().ok())
+        .filter(|r| *r > 0.0)
+}
+
 fn ms(s: &Spread) -> String {
     if s.samples == 0 {
         "none".into()
@@ -401,15 +447,16 @@ pub fn markdown(results: &[ConditionResult]) -> String {
     let mut t = String::new();
     t.push_str(
         "| condition | link (each way) | wrist pose p50 / p99 ms, Hz | finger targets p50 / p99 ms, Hz \
-         | depth frame -> targets at robot p50 / p99 ms | feedback p50 / p99 ms | camera view Hz \
+         | depth frame -> targets at robot p50 / p99 ms | feedback p50 / p99 ms \
+         | newest PR2 state's age at the operator p50 / p99 ms | camera view Hz \
          | PR2 error mean (clutched samples) | engaged | late commands refused (arm / hand) \
          | arm stops on stale pose / hand holds on stale targets |\n",
     );
-    t.push_str("|---|---|---|---|---|---|---|---|---|---|---|\n");
+    t.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for r in results {
         let _ = writeln!(
             t,
-            "| {} | {} | {}, {:.0} | {}, {:.1} | {} | {} | {:.1} | {} | {} | {} / {} | {} / {} |",
+            "| {} | {} | {}, {:.0} | {}, {:.1} | {} | {} | {} | {:.1} | {} | {} | {} / {} | {} / {} |",
             r.name,
             r.settings,
             ms(&r.wrist_one_way),
@@ -418,6 +465,7 @@ pub fn markdown(results: &[ConditionResult]) -> String {
             r.targets_rate_hz,
             ms(&r.frame_to_command),
             ms(&r.feedback),
+            ms(&r.feedback_staleness),
             r.camera_view_rate_hz,
             match (r.pr2_error_mean_m, r.engagements) {
                 (Some(m), _) => format!("{:.1} cm ({})", m * 100.0, r.pr2_samples),
@@ -763,6 +811,40 @@ mod tests {
         let (n, bad) = active_without_fresh(&s, &c, 0.12, 0.15);
         assert_eq!(n, 2);
         assert_eq!(bad, vec![12.0]);
+    }
+
+    #[test]
+    fn staleness_is_the_wait_for_the_next_state_plus_the_held_ones_age() {
+        // States stamped every 10 ms, each arriving 20 ms after its stamp, then a
+        // burst: three arriving together 100 ms late.
+        let a = |stamp: f64, received: f64| Arrival {
+            sent_s: stamp,
+            received_s: received,
+            stamp_s: stamp,
+        };
+        let v = [
+            a(0.00, 0.02),
+            a(0.01, 0.03),
+            a(0.02, 0.12),
+            a(0.03, 0.12),
+            a(0.04, 0.12),
+        ];
+        let s = staleness_s(&v);
+        let want = [0.03, 0.11, 0.10, 0.09];
+        assert_eq!(s.len(), want.len());
+        for (got, want) in s.iter().zip(want) {
+            assert!((got - want).abs() < 1e-9, "{s:?}");
+        }
+        assert!(staleness_s(&v[..1]).is_empty());
+    }
+
+    #[test]
+    fn the_cap_is_read_from_the_settings() {
+        assert_eq!(rate_cap_mbit("delay_ms=20 rate_mbit=2"), Some(2.0));
+        assert_eq!(rate_cap_mbit("rate_mbit=0.5"), Some(0.5));
+        assert_eq!(rate_cap_mbit("delay_ms=20 rate_mbit=0"), None);
+        assert_eq!(rate_cap_mbit("delay_ms=200"), None);
+        assert_eq!(rate_cap_mbit("rate_mbit=fast"), None);
     }
 
     #[test]

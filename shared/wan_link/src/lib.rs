@@ -9,10 +9,14 @@
 //!   +jitter)` after it was read (never before `delay - jitter`, never before 0), in
 //!   order, as TCP delivers;
 //! * **bandwidth caps**: the chunks leave one after the other at `rate_mbit`, so a
-//!   burst queues; the queue is bounded (`queue_kb`), and a full queue stops the
-//!   forwarder reading from the sender, whose TCP send buffer then fills: the
-//!   backpressure a slow link gives, which Zenoh answers by dropping what its
-//!   congestion control allows (camera images) before it blocks what must arrive;
+//!   burst queues; the queue is bounded in time (`queue_ms`: the bytes waiting for
+//!   the capped link take at most this long to leave, as in a bottleneck router's
+//!   buffer), and a full queue stops the forwarder reading from the sender, whose
+//!   TCP send buffer then fills: the backpressure a slow link gives, which Zenoh
+//!   answers by dropping what its congestion control allows (camera images) before it
+//!   blocks what must arrive. The forwarder's own sockets have small kernel buffers
+//!   ([`DEFAULT_SOCKET_KB`]), so the kernel adds no queue of its own in front of the
+//!   modelled one;
 //! * **loss** as a TCP connection experiences it: a lost segment is retransmitted, so
 //!   each of a chunk's 1448-byte segments is lost with probability `loss`, and a chunk
 //!   with a lost segment (and everything behind it: in order) arrives
@@ -35,6 +39,18 @@ use rand_chacha::ChaCha8Rng;
 /// TCP's maximum segment size on an Ethernet path (1500 - 20 - 20 - 12 bytes).
 pub const SEGMENT_BYTES: usize = 1448;
 
+/// The most bytes in flight in one direction (read, not yet delivered: on the wire,
+/// delayed, or held by a partition or a retransmission), the stand-in for the TCP
+/// window of a real path (Linux's largest default receive buffer is 6 MiB). Only the
+/// bytes waiting for a capped link are bounded tighter, by `queue_ms`.
+pub const IN_FLIGHT_BYTES: usize = 8 << 20;
+
+/// The kernel buffers (`SO_RCVBUF`, `SO_SNDBUF`) the forwarder asks for on its
+/// sockets, KiB (the kernel doubles it for its bookkeeping). Left to the kernel's
+/// autotuning, the receive buffer grows to megabytes, and a slow link's backlog would
+/// wait there, in front of the modelled queue, where no congestion control sees it.
+pub const DEFAULT_SOCKET_KB: u32 = 16;
+
 /// The impairment of the link, the same in both directions.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Impairment {
@@ -48,8 +64,9 @@ pub struct Impairment {
     pub retransmit_ms: f64,
     /// Bandwidth cap, Mbit/s; `None`: uncapped.
     pub rate_mbit: Option<f64>,
-    /// How many bytes may wait for the capped link before the sender is held, KiB.
-    pub queue_kb: usize,
+    /// The capped link's buffer, ms: the sender is held while the bytes waiting for
+    /// the link would take longer than this to leave at `rate_mbit`.
+    pub queue_ms: f64,
     /// Nothing flows while true.
     pub partitioned: bool,
 }
@@ -62,7 +79,7 @@ impl Default for Impairment {
             loss: 0.0,
             retransmit_ms: 200.0,
             rate_mbit: None,
-            queue_kb: 256,
+            queue_ms: 50.0,
             partitioned: false,
         }
     }
@@ -78,7 +95,7 @@ pub enum LinkError {
         value: String,
     },
     #[error(
-        "unknown setting `{0}` (delay_ms, jitter_ms, loss_pct, retransmit_ms, rate_mbit, queue_kb)"
+        "unknown setting `{0}` (delay_ms, jitter_ms, loss_pct, retransmit_ms, rate_mbit, queue_ms)"
     )]
     UnknownSetting(String),
     #[error("`{0}` is not key=value")]
@@ -116,9 +133,8 @@ impl Impairment {
         {
             return bad("rate_mbit", "in [0.01, 100000] (0 for uncapped)", r);
         }
-        if !(1..=1_048_576).contains(&self.queue_kb) {
-            #[allow(clippy::cast_precision_loss)]
-            return bad("queue_kb", "in [1, 1048576]", self.queue_kb as f64);
+        if !(self.queue_ms.is_finite() && (1.0..=10_000.0).contains(&self.queue_ms)) {
+            return bad("queue_ms", "in [1, 10000]", self.queue_ms);
         }
         Ok(())
     }
@@ -126,13 +142,13 @@ impl Impairment {
     /// The settings as one `key=value` line (what `show` prints, what `set` reads).
     pub fn describe(&self) -> String {
         format!(
-            "delay_ms={} jitter_ms={} loss_pct={} retransmit_ms={} rate_mbit={} queue_kb={} partitioned={}",
+            "delay_ms={} jitter_ms={} loss_pct={} retransmit_ms={} rate_mbit={} queue_ms={} partitioned={}",
             self.delay_ms,
             self.jitter_ms,
             self.loss * 100.0,
             self.retransmit_ms,
             self.rate_mbit.unwrap_or(0.0),
-            self.queue_kb,
+            self.queue_ms,
             self.partitioned
         )
     }
@@ -164,18 +180,22 @@ impl Impairment {
                     let r = num("rate_mbit")?;
                     out.rate_mbit = if r == 0.0 { None } else { Some(r) };
                 }
-                "queue_kb" => {
-                    out.queue_kb = v.parse().map_err(|_| LinkError::OutOfRange {
-                        field: "queue_kb",
-                        range: "a whole number",
-                        value: v.to_owned(),
-                    })?;
-                }
+                "queue_ms" => out.queue_ms = num("queue_ms")?,
                 other => return Err(LinkError::UnknownSetting(other.to_owned())),
             }
         }
         out.validate()?;
         Ok(out)
+    }
+
+    /// How long a reader must wait before it takes more from the sender, s, when the
+    /// capped link needs `backlog_s` to send what already waits for it: until the
+    /// backlog is back within `queue_ms`. Zero when uncapped.
+    pub fn hold_s(&self, backlog_s: f64) -> f64 {
+        if self.rate_mbit.is_none() {
+            return 0.0;
+        }
+        (backlog_s - self.queue_ms * 1e-3).max(0.0)
     }
 }
 
@@ -237,6 +257,12 @@ impl Link {
             losses: 0,
             chunks: 0,
         }
+    }
+
+    /// How long the capped link needs at `t_s` to send the chunks already waiting for
+    /// it, s (zero once it is idle).
+    pub fn backlog_s(&self, t_s: f64) -> f64 {
+        (self.free_s - t_s).max(0.0)
     }
 
     /// When a chunk of `len` bytes read at `t_s` is delivered under `imp` (not
@@ -332,6 +358,13 @@ mod tests {
             let expect = (k + 1) as f64 * 0.01;
             assert!((a - expect).abs() < 1e-9, "{k}: {a}");
         }
+        // 100 ms of bytes wait for the link at t = 0: behind a 50 ms buffer the reader
+        // holds the sender 50 ms, at t = 60 ms no longer; uncapped, never.
+        assert!((link.backlog_s(0.0) - 0.1).abs() < 1e-9);
+        assert!((imp.hold_s(link.backlog_s(0.0)) - 0.05).abs() < 1e-9);
+        assert_eq!(imp.hold_s(link.backlog_s(0.06)), 0.0);
+        assert_eq!(link.backlog_s(0.2), 0.0);
+        assert_eq!(Impairment::default().hold_s(5.0), 0.0);
     }
 
     #[test]
@@ -392,6 +425,8 @@ mod tests {
             ("set loss_pct=60", "loss_pct"),
             ("set loss_pct=nan", "loss_pct"),
             ("set rate_mbit=abc", "rate_mbit"),
+            ("set queue_ms=0", "queue_ms"),
+            ("set queue_kb=64", "queue_kb"),
             ("set bandwidth=3", "bandwidth"),
             ("set delay_ms", "delay_ms"),
             ("partition maybe", "partition maybe"),

@@ -31,6 +31,11 @@ enum Cmd {
         /// Seed of the jitter and loss draws.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Kernel buffers (SO_RCVBUF, SO_SNDBUF) of the forwarded connections' sockets,
+        /// KiB; 0 leaves them to the kernel's autotuning (megabytes: a hidden queue in
+        /// front of the modelled one, docs/network.md).
+        #[arg(long, default_value_t = teleop_wan_link::DEFAULT_SOCKET_KB)]
+        socket_kb: u32,
         /// Initial settings, as `set` takes them (e.g. delay_ms=20 loss_pct=1).
         settings: Vec<String>,
     },
@@ -60,14 +65,16 @@ async fn main() -> anyhow::Result<()> {
             upstream,
             control,
             seed,
+            socket_kb,
             settings,
         } => {
             let words: Vec<&str> = settings.iter().map(String::as_str).collect();
             let initial = Impairment::default()
                 .with(&words)
                 .context("initial settings")?;
-            let emulator = Emulator::new(initial, seed);
-            let data = TcpListener::bind(&listen)
+            let emulator = Emulator::new(initial, seed, socket_kb);
+            let data = emulator
+                .listen(&listen)
                 .await
                 .with_context(|| format!("listening on {listen}"))?;
             let ctl = TcpListener::bind(&control)
@@ -78,6 +85,7 @@ async fn main() -> anyhow::Result<()> {
                 upstream,
                 control = proxy::bound(&ctl),
                 seed,
+                socket_kb,
                 settings = initial.describe(),
                 "wan link running"
             );
@@ -144,8 +152,10 @@ async fn measure(seed: u64) -> anyhow::Result<()> {
         );
     }
     println!();
-    println!("| configured | transfer | measured throughput (Mbit/s) | ratio to the cap |");
-    println!("|---|---|---|---|");
+    println!(
+        "| configured | transfer | measured throughput (Mbit/s) | ratio to the cap | most bytes written and not yet received |"
+    );
+    println!("|---|---|---|---|---|");
     for (settings, bytes) in [
         ("rate_mbit=0", 64 << 20),
         ("rate_mbit=10", 4 << 20),
@@ -154,12 +164,16 @@ async fn measure(seed: u64) -> anyhow::Result<()> {
         let words: Vec<&str> = settings.split_whitespace().collect();
         let imp = Impairment::default().with(&words)?;
         let mut rig = Rig::new(imp, seed).await?;
-        let bps = throughput(&mut rig, bytes).await?;
-        let mbit = bps * 8.0 / 1e6;
+        let t = throughput(&mut rig, bytes).await?;
+        let mbit = t.bytes_per_s * 8.0 / 1e6;
         let ratio = imp
             .rate_mbit
             .map_or_else(|| "-".to_owned(), |r| format!("{:.3}", mbit / r));
-        println!("| {settings} | {} MiB | {mbit:.2} | {ratio} |", bytes >> 20);
+        println!(
+            "| {settings} | {} MiB | {mbit:.2} | {ratio} | {} KiB |",
+            bytes >> 20,
+            t.max_lead_bytes >> 10
+        );
     }
     Ok(())
 }

@@ -9,11 +9,14 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
-use tokio::net::{TcpListener, TcpStream};
+use tokio::net::{TcpListener, TcpSocket, TcpStream};
 use tokio::time::Instant;
 
 use crate::Impairment;
 use crate::proxy::{self, Emulator};
+
+/// The test sender's `SO_SNDBUF`, bytes.
+pub const SENDER_BUFFER_BYTES: u32 = 16 * 1024;
 
 /// An emulator on loopback forwarding to a receiver; the sender's stream.
 #[derive(Debug)]
@@ -38,15 +41,20 @@ impl Rig {
     pub async fn new(imp: Impairment, seed: u64) -> std::io::Result<Self> {
         let sink = TcpListener::bind("127.0.0.1:0").await?;
         let sink_addr = sink.local_addr()?;
-        let front = TcpListener::bind("127.0.0.1:0").await?;
+        let emulator = Emulator::new(imp, seed, crate::DEFAULT_SOCKET_KB);
+        let front = emulator.listen("127.0.0.1:0").await?;
         let front_addr = front.local_addr()?;
-        let emulator = Emulator::new(imp, seed);
         let fwd = tokio::spawn(proxy::forward(
             emulator.clone(),
             front,
             sink_addr.to_string(),
         ));
-        let sender = TcpStream::connect(front_addr).await?;
+        // The sender's send buffer as small as the compose system's routers ask for
+        // on their WAN links, so what the sender has written and the receiver not yet
+        // read is what the emulator holds (and those small buffers).
+        let socket = TcpSocket::new_v4()?;
+        socket.set_send_buffer_size(SENDER_BUFFER_BYTES)?;
+        let sender = socket.connect(front_addr).await?;
         sender.set_nodelay(true)?;
         let (receiver, _) = sink.accept().await?;
         Ok(Self {
@@ -94,39 +102,56 @@ pub async fn delays(rig: &mut Rig, n: usize, every: Duration) -> std::io::Result
     Ok(d)
 }
 
-/// Bytes per second through the rig for a bulk transfer of `bytes`.
+/// A bulk transfer through the rig.
+#[derive(Debug, Clone, Copy)]
+pub struct Transfer {
+    /// Bytes per second, start to end.
+    pub bytes_per_s: f64,
+    /// The most bytes the sender had written and the receiver not yet read: what the
+    /// sender's send buffer, the emulator (its sockets and its queue) held at once.
+    pub max_lead_bytes: usize,
+}
+
+/// A bulk transfer of `bytes` through the rig, as fast as the sender can write.
 ///
 /// # Errors
 /// The loopback connection failing.
-pub async fn throughput(rig: &mut Rig, bytes: usize) -> std::io::Result<f64> {
+pub async fn throughput(rig: &mut Rig, bytes: usize) -> std::io::Result<Transfer> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
     let (mut rx, _) = rig.receiver.split();
     let (_, mut tx) = rig.sender.split();
+    let sent = AtomicUsize::new(0);
     let start = Instant::now();
     let send = async {
-        let block = vec![0u8; 64 * 1024];
+        let block = vec![0u8; 4 * 1024];
         let mut left = bytes;
         while left > 0 {
             let k = left.min(block.len());
             tx.write_all(&block[..k]).await?;
+            sent.fetch_add(k, Ordering::Relaxed);
             left -= k;
         }
         Ok::<(), std::io::Error>(())
     };
     let recv = async {
         let mut buf = vec![0u8; 64 * 1024];
-        let mut got = 0;
+        let (mut got, mut lead) = (0, 0);
         while got < bytes {
+            lead = lead.max(sent.load(Ordering::Relaxed).saturating_sub(got));
             let n = rx.read(&mut buf).await?;
             if n == 0 {
                 break;
             }
             got += n;
         }
-        Ok::<usize, std::io::Error>(got)
+        Ok::<(usize, usize), std::io::Error>((got, lead))
     };
-    let ((), got) = tokio::try_join!(send, recv)?;
+    let ((), (got, max_lead_bytes)) = tokio::try_join!(send, recv)?;
     #[allow(clippy::cast_precision_loss)]
-    Ok(got as f64 / start.elapsed().as_secs_f64())
+    Ok(Transfer {
+        bytes_per_s: got as f64 / start.elapsed().as_secs_f64(),
+        max_lead_bytes,
+    })
 }
 
 /// The `q`-quantile of `v` (sorted in place).

@@ -1,9 +1,11 @@
 //! The forwarding: every connection accepted on the listen address is paired with a
 //! fresh connection to the upstream (the remote router), and each direction runs its
 //! own [`Link`]: a reader takes chunks from the sender and schedules them, a writer
-//! delivers each at its time (and not while partitioned). The bytes waiting in one
-//! direction are bounded by `queue_kb`; a reader with a full queue stops reading, so
-//! the sender's TCP sees the backpressure of a slow link.
+//! delivers each at its time (and not while partitioned). A reader stops reading while
+//! the capped link's backlog is over `queue_ms` (or [`IN_FLIGHT_BYTES`] are in flight),
+//! so the sender's TCP sees the backpressure of a slow link; the sockets' kernel
+//! buffers are kept small ([`crate::DEFAULT_SOCKET_KB`]) so that backlog cannot hide in
+//! them instead.
 
 use std::collections::VecDeque;
 use std::net::SocketAddr;
@@ -12,11 +14,11 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
 use tokio::io::{AsyncBufReadExt, AsyncReadExt, AsyncWriteExt, BufReader};
-use tokio::net::{TcpListener, TcpStream};
+use tokio::net::{TcpListener, TcpSocket, TcpStream};
 use tokio::sync::{Mutex, Notify, watch};
 use tokio::time::Instant;
 
-use crate::{Command, Impairment, Link};
+use crate::{Command, IN_FLIGHT_BYTES, Impairment, Link};
 
 /// Largest chunk read at once, bytes.
 const CHUNK_BYTES: usize = 16 * 1024;
@@ -28,8 +30,10 @@ pub struct DirectionStats {
     pub chunks: AtomicU64,
     /// Chunks delayed by a loss (a retransmission).
     pub losses: AtomicU64,
-    /// Most bytes waiting at once.
+    /// Most bytes in flight at once (read, not yet delivered).
     pub queue_peak: AtomicU64,
+    /// Longest the capped link needed to send what waited for it, microseconds.
+    pub backlog_peak_us: AtomicU64,
 }
 
 /// Counters of the emulator.
@@ -47,11 +51,16 @@ impl Stats {
         let d = |i: usize, name: &str| {
             let s = &self.dir[i];
             format!(
-                "{name}_bytes={} {name}_chunks={} {name}_losses={} {name}_queue_peak={}",
+                "{name}_bytes={} {name}_chunks={} {name}_losses={} {name}_queue_peak={} {name}_backlog_peak_ms={:.1}",
                 s.bytes.load(Ordering::Relaxed),
                 s.chunks.load(Ordering::Relaxed),
                 s.losses.load(Ordering::Relaxed),
-                s.queue_peak.load(Ordering::Relaxed)
+                s.queue_peak.load(Ordering::Relaxed),
+                {
+                    #[allow(clippy::cast_precision_loss)]
+                    let us = s.backlog_peak_us.load(Ordering::Relaxed) as f64;
+                    us / 1e3
+                }
             )
         };
         format!(
@@ -72,16 +81,57 @@ pub struct Emulator {
     pub stats: Stats,
     seed: u64,
     epoch: Instant,
+    /// `SO_RCVBUF` and `SO_SNDBUF` of the sockets it opens, bytes; `None`: the
+    /// kernel's autotuning.
+    socket_bytes: Option<u32>,
 }
 
 impl Emulator {
-    pub fn new(initial: Impairment, seed: u64) -> Arc<Self> {
+    /// An emulator starting with `initial`, drawing from `seed`, whose sockets ask
+    /// the kernel for `socket_kb` KiB buffers (0: the kernel's autotuning).
+    pub fn new(initial: Impairment, seed: u64, socket_kb: u32) -> Arc<Self> {
         Arc::new(Self {
             impairment: watch::Sender::new(initial),
             stats: Stats::default(),
             seed,
             epoch: Instant::now(),
+            socket_bytes: (socket_kb > 0).then(|| socket_kb.saturating_mul(1024)),
         })
+    }
+
+    /// A TCP socket for `addr` with the emulator's buffer sizes.
+    fn socket(&self, addr: SocketAddr) -> std::io::Result<TcpSocket> {
+        let s = if addr.is_ipv4() {
+            TcpSocket::new_v4()?
+        } else {
+            TcpSocket::new_v6()?
+        };
+        if let Some(b) = self.socket_bytes {
+            s.set_recv_buffer_size(b)?;
+            s.set_send_buffer_size(b)?;
+        }
+        Ok(s)
+    }
+
+    /// Listens on `addr` (resolved; the first address); the connections it accepts
+    /// inherit the emulator's buffer sizes (set before `listen`, as the kernel needs
+    /// for the window it offers).
+    ///
+    /// # Errors
+    /// Resolving, binding or listening.
+    pub async fn listen(&self, addr: &str) -> std::io::Result<TcpListener> {
+        let a = resolve(addr).await?;
+        let s = self.socket(a)?;
+        s.set_reuseaddr(true)?;
+        s.bind(a)?;
+        s.listen(1024)
+    }
+
+    /// Connects to `addr` (resolved; the first address) with the emulator's buffer
+    /// sizes.
+    async fn connect(&self, addr: &str) -> std::io::Result<TcpStream> {
+        let a = resolve(addr).await?;
+        self.socket(a)?.connect(a).await
     }
 
     /// The impairment now.
@@ -132,7 +182,7 @@ pub async fn forward(emulator: Arc<Emulator>, listener: TcpListener, upstream: S
                 continue;
             }
         };
-        let server = match TcpStream::connect(&upstream).await {
+        let server = match emulator.connect(&upstream).await {
             Ok(s) => s,
             Err(e) => {
                 tracing::warn!(%peer, upstream, "cannot reach the upstream: {e}; connection closed");
@@ -204,25 +254,41 @@ async fn pump(
     let reader = async {
         let mut buf = vec![0u8; CHUNK_BYTES];
         loop {
-            // Hold the sender while the queue is full. The wake-up is registered
-            // before the check, so a chunk delivered in between is not missed.
+            // Hold the sender while the most bytes are in flight. The wake-up is
+            // registered before the check, so a chunk delivered in between is not
+            // missed.
             loop {
                 let woken = changed.notified();
                 tokio::pin!(woken);
                 woken.as_mut().enable();
-                let limit = em.impairment().queue_kb * 1024;
-                if queue.lock().await.bytes < limit {
+                if queue.lock().await.bytes < IN_FLIGHT_BYTES {
                     break;
                 }
                 woken.await;
+            }
+            // And while the capped link's buffer is full: until its backlog drains
+            // to `queue_ms` (re-checked at least every 50 ms, for a changed setting).
+            let hold = em.impairment().hold_s(link.backlog_s(em.now_s()));
+            if hold > 0.0 {
+                tokio::time::sleep(Duration::from_secs_f64(hold.min(0.05))).await;
+                continue;
             }
             let n = match rd.read(&mut buf).await {
                 Ok(0) | Err(_) => break,
                 Ok(n) => n,
             };
             let imp = em.impairment();
-            let at = link.schedule(&imp, em.now_s(), n);
+            let now = em.now_s();
+            let at = link.schedule(&imp, now, n);
             stats.losses.store(link.losses, Ordering::Relaxed);
+            stats.backlog_peak_us.fetch_max(
+                // Whole microseconds of a backlog of at most seconds.
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                {
+                    (link.backlog_s(now) * 1e6) as u64
+                },
+                Ordering::Relaxed,
+            );
             stats.chunks.fetch_add(1, Ordering::Relaxed);
             let mut q = queue.lock().await;
             q.chunks.push_back((at, buf[..n].to_vec()));
@@ -282,6 +348,16 @@ async fn pump(
     };
     tokio::join!(reader, writer);
     let _ = wr.shutdown().await;
+}
+
+/// The first address `addr` (`host:port`) resolves to.
+async fn resolve(addr: &str) -> std::io::Result<SocketAddr> {
+    tokio::net::lookup_host(addr).await?.next().ok_or_else(|| {
+        std::io::Error::new(
+            std::io::ErrorKind::NotFound,
+            format!("{addr} resolves to no address"),
+        )
+    })
 }
 
 /// The address a listener is bound to, for logs.

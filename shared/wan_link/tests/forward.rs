@@ -1,7 +1,8 @@
 //! The emulator's guarantees, through real TCP connections on loopback: nothing arrives
 //! before its configured delay minus jitter, in order; nothing crosses a partition and
 //! everything held arrives, in order, when it ends; no transfer beats the bandwidth
-//! cap; a full queue holds the sender (the waiting bytes stay bounded); losses cost
+//! cap; a full queue holds the sender (the waiting bytes stay bounded); delay alone
+//! does not cap the rate; losses cost
 //! the retransmission delay; bad control lines change nothing and say why.
 //! (Upper bounds on delay depend on the machine's load: `wan_link measure` reports
 //! them, docs/network.md has the figures.)
@@ -56,16 +57,43 @@ async fn a_partition_holds_everything_and_releases_it_in_order() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn no_transfer_beats_the_cap_and_a_full_queue_holds_the_sender() {
-    let mut rig = Rig::new(imp("rate_mbit=8 queue_kb=64"), 1).await.unwrap();
+    let mut rig = Rig::new(imp("rate_mbit=8 queue_ms=50"), 1).await.unwrap();
     // 1 MiB at 8 Mbit/s (1 MB/s): the first 16 KiB chunk may go at once.
-    let bps = throughput(&mut rig, 1 << 20).await.unwrap();
-    assert!(bps <= 1.0e6 * 1.03, "{bps} B/s through an 8 Mbit/s cap");
-    let peak = rig.emulator.stats.dir[0].queue_peak.load(Ordering::Relaxed);
+    let t = throughput(&mut rig, 1 << 20).await.unwrap();
     assert!(
-        peak <= (64 + 16) * 1024,
-        "{peak} bytes waited behind a 64 KiB queue"
+        t.bytes_per_s <= 1.0e6 * 1.03,
+        "{} B/s through an 8 Mbit/s cap",
+        t.bytes_per_s
     );
-    assert!(peak > 32 * 1024, "the queue never filled: {peak}");
+    // The capped link's backlog stays within its 50 ms buffer plus the one 16 KiB
+    // chunk (16 ms at 1 MB/s) read when it was just under, and it did fill.
+    let peak_ms = rig.emulator.stats.dir[0]
+        .backlog_peak_us
+        .load(Ordering::Relaxed) as f64
+        / 1e3;
+    assert!(
+        peak_ms <= 50.0 + 17.0,
+        "{peak_ms} ms waited behind a 50 ms buffer"
+    );
+    assert!(peak_ms > 30.0, "the buffer never filled: {peak_ms} ms");
+    // The sender is held: what it wrote and the receiver has not read (its 16 KiB
+    // send buffer, the emulator's small socket buffers and its 50 kB queue) stays
+    // far below the megabytes the kernel's autotuned buffers would take.
+    assert!(
+        t.max_lead_bytes <= 256 * 1024,
+        "the sender got {} KiB ahead of the receiver",
+        t.max_lead_bytes >> 10
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn delay_alone_does_not_cap_the_rate() {
+    // 100 ms one way: a 4 MiB transfer takes the delay once, not once per queue's
+    // worth (the link is bounded by its in-flight window, 8 MiB, not by its buffer).
+    let mut rig = Rig::new(imp("delay_ms=100"), 1).await.unwrap();
+    let t = throughput(&mut rig, 4 << 20).await.unwrap();
+    let mbit = t.bytes_per_s * 8.0 / 1e6;
+    assert!(mbit > 50.0, "{mbit} Mbit/s through an uncapped 100 ms link");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
