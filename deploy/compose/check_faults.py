@@ -22,7 +22,6 @@ SETTLE_S = 0.6
 # ... and as moving before the kill when some joint moved faster than this.
 MOVING_ABOVE_RAD_S = 0.03
 
-
 # How a robot must behave while the container is gone:
 #   "stop": no joint faster than STOPPED_BELOW_RAD_S from SETTLE_S after the kill (the
 #           PR2 braked by its controller's watchdogs or the hardware safety layer; a

@@ -424,13 +424,15 @@ fn staleness_s(a: &[Arrival]) -> Vec<f64> {
         .collect()
 }
 
-/// The bandwidth cap of a condition's link settings (`rate_mbit=R`, 0 = none), Mbit/s.
+/// The bandwidth cap of a condition's link settings, read as the link emulator reads
+/// them (`wan_link ctl set ...`: `rate_mbit=0` is none), Mbit/s; `None` also for
+/// settings it would refuse.
 fn rate_cap_mbit(settings: &str) -> Option<f64> {
-    settings
-        .split_whitespace()
-        .find_map(|kv| kv.strip_prefix("rate_mbit="))
-        .and_then(|v| v.parse::<f64>().ok())
-        .filter(|r| *r > 0.0)
+    let words: Vec<&str> = settings.split_whitespace().collect();
+    teleop_wan_link::Impairment::default()
+        .with(&words)
+        .ok()?
+        .rate_mbit
 }
 
 fn ms(s: &Spread) -> String {
