@@ -181,14 +181,31 @@ fn only_the_routers_and_the_link_emulator_join_the_wan_and_hardware_stays_off_it
     .unwrap();
     // The local router dials the remote site by name; on the WAN that name is the
     // link emulator, which listens on the address it forwards from.
-    // Its WAN link keeps the kernel's buffers small, so a slow WAN's backlog waits in
-    // Zenoh's priority queues (docs/network.md); so does the remote router's WAN
-    // listener, whose links also carry 16 KiB batches.
+    // Two links across the WAN, the camera views and diagnostics (Zenoh priorities
+    // 6-7) on one, the rest (0-5) on the other, so views waiting below Zenoh (in TLS
+    // and the kernel) hold up only views. Each keeps the kernel's buffers small, so a
+    // slow WAN's backlog waits in Zenoh's priority queues (docs/network.md); so does
+    // the remote router's WAN listener, whose links also carry 16 KiB batches.
     let small = "#so_sndbuf=16384;so_rcvbuf=16384";
     assert_eq!(
         local.bus.zenoh.connect,
-        [format!("tls/remote-site.wan:7447{small}")]
+        [
+            format!("tls/remote-site.wan:7447?prio=0-5{small}"),
+            format!("tls/remote-site.wan:7447?prio=6-7{small}")
+        ]
     );
+    // The views' priority class is the one the second link carries, every other
+    // class the first's.
+    assert_eq!(
+        teleop_bus::priority(teleop_interfaces::QosClass::Image) as u8,
+        6
+    );
+    for q in [
+        teleop_interfaces::QosClass::Control,
+        teleop_interfaces::QosClass::State,
+    ] {
+        assert!((teleop_bus::priority(q) as u8) <= 5, "{q:?}");
+    }
     let remote: teleop_node::router::RouterConfig = teleop_node::config::load_checked(
         &repo_root().join("deploy/compose/config/remote-router/router.toml"),
     )
@@ -207,17 +224,25 @@ fn only_the_routers_and_the_link_emulator_join_the_wan_and_hardware_stays_off_it
     // (deeper queues for the feedback's priorities, views dropped at once rather than
     // holding the router's reading of their link): the file is the container's
     // /etc/teleop one, the certificates and the site's interfaces are left out here.
-    let file = remote.bus.zenoh.config_file.clone().unwrap();
-    let in_repo = repo_root()
-        .join("deploy/compose/config")
-        .join(file.strip_prefix("/etc/teleop/").unwrap());
-    for (z, file) in [(&local.bus.zenoh, None), (&remote.bus.zenoh, Some(in_repo))] {
+    let in_repo = |z: &teleop_bus::ZenohSettings| {
+        let file = z.config_file.clone().unwrap();
+        repo_root()
+            .join("deploy/compose/config")
+            .join(file.strip_prefix("/etc/teleop/").unwrap())
+    };
+    for (z, remote_site) in [(&local.bus.zenoh, false), (&remote.bus.zenoh, true)] {
         let mut z = z.clone();
         z.tls = None;
         z.hardware_interfaces = vec!["*".into()];
-        z.config_file = file;
+        z.config_file = Some(in_repo(&z));
         let cfg = z.to_zenoh().unwrap();
-        if z.config_file.is_some() {
+        // Both ends take the WAN's two links in one transport.
+        assert_eq!(
+            cfg.get_json("transport/unicast/max_links").unwrap(),
+            "2",
+            "{remote_site}"
+        );
+        if remote_site {
             let q = cfg.get_json("transport/link/tx/queue").unwrap();
             let q: serde_json::Value = serde_json::from_str(&q).unwrap();
             assert_eq!(q["size"]["interactive_high"], 16, "{q}");
@@ -275,4 +300,76 @@ fn the_image_scripts_ship_every_binary_of_the_node_table() {
             );
         }
     }
+}
+
+/// One recorded cut for `deploy/compose/check_partition.py`: wrist poses at 100 Hz
+/// from 0 s, silent from 10 s to 12 s; the arm's status reports (Active from 2 s when
+/// `following`, else stopped on a stale wrist pose at 9 s) and its stop report
+/// `stop_after_s` after the last pose. Returns the script's exit code and output.
+fn judge_cut(following: bool, stop_after_s: f64) -> (i32, String) {
+    let dir = std::env::temp_dir().join(format!(
+        "teleop-cut-{}-{following}-{}",
+        std::process::id(),
+        (stop_after_s * 1e3) as u64
+    ));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut wrist = String::new();
+    for k in (0..1000).chain(1200..1500) {
+        wrist.push_str(&format!(
+            "{{\"_meta\":{{\"received_s\":{}}}}}\n",
+            f64::from(k) / 100.0
+        ));
+    }
+    let last = 9.99;
+    let names = ["arm.engagements", "arm.stop.stale_wrist_pose"];
+    let status = |t: f64, state: u8, stale: u32| {
+        serde_json::json!({
+            "node_name": "pr2_arm_controller", "lifecycle_state": state,
+            "counter_names": names, "counter_values": [1, stale], "_meta": {"sent_s": t},
+        })
+        .to_string()
+            + "\n"
+    };
+    let mut reports = status(1.0, 1, 0) + &status(2.0, 2, 0);
+    if following {
+        reports += &status(last - 0.5, 2, 0);
+        reports += &status(last + stop_after_s, 1, 1);
+    } else {
+        reports += &status(9.0, 1, 1);
+        reports += &status(last + stop_after_s, 1, 1);
+    }
+    reports += &status(14.0, 1, 1);
+    std::fs::write(dir.join("wrist.jsonl"), wrist).unwrap();
+    std::fs::write(dir.join("status.jsonl"), reports).unwrap();
+    let python = std::env::var("TELEOP_PYTHON").unwrap_or_else(|_| "python3".into());
+    let out = std::process::Command::new(python)
+        .arg(repo_root().join("deploy/compose/check_partition.py"))
+        .args([dir.join("wrist.jsonl"), dir.join("status.jsonl")])
+        .args(["10.0", "12.0"])
+        .output()
+        .unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let text =
+        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+    (out.status.code().unwrap_or(-1), text)
+}
+
+/// The compose test's check of a cut passes a stop within the bound, fails a late one,
+/// and refuses to judge (exit 2: the test runs the cut again) when the arm had stopped
+/// on its own before the cut, saying why.
+#[test]
+fn the_cut_check_judges_a_following_arm_and_explains_one_that_was_not() {
+    let (code, text) = judge_cut(true, 0.15);
+    assert_eq!(code, 0, "{text}");
+    assert!(
+        text.contains("stopped 150 ms after the last valid wrist pose"),
+        "{text}"
+    );
+    let (code, text) = judge_cut(true, 0.40);
+    assert_eq!(code, 1, "{text}");
+    assert!(text.contains("BAD stopped 400 ms"), "{text}");
+    let (code, text) = judge_cut(false, 0.15);
+    assert_eq!(code, 2, "{text}");
+    assert!(text.contains("the arm was not Active"), "{text}");
+    assert!(text.contains("'arm.stop.stale_wrist_pose': 1"), "{text}");
 }

@@ -378,13 +378,16 @@ async fn a_second_operator_site_is_refused_and_reported_never_blended() {
         mean < 0.010 && max < 0.025,
         "the arm did not keep following the first station"
     );
-    // The arm controller reports the conflict.
+    // The arm controller reports the conflict: a report made at least 3 s after the
+    // second station joined (the subscriber also holds older ones, made when few of
+    // its samples had come yet).
     let mut report = None;
-    let until = tokio::time::Instant::now() + Duration::from_secs(2);
+    let until = tokio::time::Instant::now() + Duration::from_secs(3);
     while report.is_none() && tokio::time::Instant::now() < until {
         if let Some(s) = status.recv_timeout(Duration::from_millis(200)).await
             && s.msg.node_name == "pr2_arm_controller"
             && s.msg.counter("wrist_pose.conflict_active") == Some(1)
+            && s.msg.header.stamp.as_secs_f64() >= t_join + 3.0
         {
             report = Some(s.msg);
         }

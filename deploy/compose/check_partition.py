@@ -6,7 +6,13 @@ last valid wrist pose it could have had before the cut, it refused the stale com
 the link released when it returned (for a partition: `--released-late`), and it stayed
 stopped afterwards (no fresh clutch press came).
 
-    check_partition.py WRIST.jsonl STATUS.jsonl CUT_S RESTORED_S [--released-late] Prints what it measured; exits 1 on a miss."""
+    check_partition.py WRIST.jsonl STATUS.jsonl CUT_S RESTORED_S [--released-late]
+
+Prints what it measured; exits 1 on a miss. Exits 2 when the premise did not hold:
+the arm was not Active (clutched, moving) when the commands were cut, because it had
+stopped before for a reason of its own (a stall of the wrist poses on a loaded
+machine, say); then nothing about the cut can be judged, it prints the arm's reports
+before the cut and why it stopped, and the caller may run the cut again."""
 
 import json
 import sys
@@ -26,6 +32,26 @@ def counter(status, name):
         return status["counter_values"][status["counter_names"].index(name)]
     except ValueError:
         return None
+
+
+def explain(arm, wrist, last):
+    """The arm's reports in the 8 s before the cut (time before the last wrist pose,
+    lifecycle state, stop counters that rose since the report before) and the gaps of
+    more than 100 ms between the wrist poses a listener on the robot's LAN received."""
+    before = None
+    for s in arm:
+        t = s["_meta"]["sent_s"] - last
+        if -8.0 <= t <= 0.5:
+            rose = {n: v - (counter(before, n) or 0) for n, v in
+                    zip(s["counter_names"], s["counter_values"])
+                    if n.startswith("arm.stop.") and before is not None
+                    and v > (counter(before, n) or 0)}
+            print(f"      {t:+7.3f} s  lifecycle {s['lifecycle_state']}  stops {rose or '-'}")
+        before = s
+    near = [t for t in wrist if last - 8.0 <= t <= last]
+    gaps = [(a - last, b - a) for a, b in zip(near, near[1:]) if b - a > WRIST_POSE_DEADLINE_S]
+    print("      wrist pose gaps > 100 ms before the cut: "
+          + (", ".join(f"{1e3 * g:.0f} ms at {t:+.3f} s" for t, g in gaps) or "none"))
 
 
 def main(wrist_path, status_path, partition_on_s, partition_off_s, released_late):
@@ -51,8 +77,12 @@ def main(wrist_path, status_path, partition_on_s, partition_off_s, released_late
     check(silence >= 1.5, f"the wrist poses fell silent for {silence:.2f} s (cut 2 s)")
     deadline = last + WRIST_POSE_DEADLINE_S
     at_cut = [s for s in arm if s["_meta"]["sent_s"] <= last]
-    check(bool(at_cut) and at_cut[-1]["lifecycle_state"] == ACTIVE,
-          "the arm was Active (clutched, moving) when the commands were cut")
+    if not (at_cut and at_cut[-1]["lifecycle_state"] == ACTIVE):
+        print("  --  the arm was not Active (clutched, moving) when the commands were cut:"
+              " the cut cannot be judged; its reports before the cut:")
+        explain(arm, wrist, last)
+        return 2
+    check(True, "the arm was Active (clutched, moving) when the commands were cut")
     stops = [s for s in arm if s["_meta"]["sent_s"] > last and s["lifecycle_state"] != ACTIVE]
     check(bool(stops), "the arm left Active after the cut")
     if not (at_cut and stops):

@@ -15,12 +15,13 @@
 # its deadline executed at the robot site, none out of order, the arm stopped and the
 # hand held whenever the commands were late; under a cap of 2 Mbit/s or more, the
 # camera views gave way to the feedback: the operator's newest PR2 state within its
-# deadline; not met at 2 Mbit/s yet, so the full sweep fails there, docs/network.md)
+# deadline, docs/network.md)
 # and writes the table (sweep.md) and the
 # plots (sweep.png) into the sweep directory.
 #
-#   sweep.sh [full|reduced]      (default full: 12 conditions, about 8 minutes;
-#                                 reduced: 6 conditions, the compose test's set)
+#   sweep.sh [full|reduced|caps] (default full: 12 conditions, about 8 minutes;
+#                                 reduced: 6 conditions, the compose test's set;
+#                                 caps: ideal and the three bandwidth caps)
 #
 # Needs: COMPOSE_PROJECT_NAME, TELEOP_CERTS, TELEOP_REPORT_DIR (deploy/compose/test.sh
 # exports them; `bash deploy/compose/test.sh --sweep full` runs the full sweep).
@@ -55,7 +56,12 @@ case $SET in
       "20ms,5%loss|delay_ms=20 loss_pct=5"
       "20ms,10Mbit|delay_ms=20 rate_mbit=10"
       "20ms,0.5Mbit|delay_ms=20 rate_mbit=0.5") ;;
-  *) echo "sweep: unknown set '$SET' (full or reduced)"; exit 2 ;;
+  caps) CONDITIONS=(
+      "ideal|delay_ms=0"
+      "20ms,10Mbit|delay_ms=20 rate_mbit=10"
+      "20ms,2Mbit|delay_ms=20 rate_mbit=2"
+      "20ms,0.5Mbit|delay_ms=20 rate_mbit=0.5") ;;
+  *) echo "sweep: unknown set '$SET' (full, reduced or caps)"; exit 2 ;;
 esac
 
 # Every node runs (check_security.sh, run by hand before, leaves the commanders stopped).

@@ -6,12 +6,12 @@
 # and tears everything down, also when a step fails; then checks that `down` left no
 # container, network or volume behind.
 #
-#   deploy/compose/test.sh [--no-build] [--skip-without-docker] [--sweep=reduced|full|none]
+#   deploy/compose/test.sh [--no-build] [--skip-without-docker] [--sweep=reduced|full|caps|none]
 #                          [--no-faults]
 #
 # --sweep: the WAN-condition sweep at the end (deploy/compose/sweep.sh): the reduced
 # set by default (6 conditions, about 4 minutes), the full one (12, about 8 minutes:
-# the figures of docs/network.md), or none.
+# the figures of docs/network.md), the bandwidth caps alone (4), or none.
 # --no-faults: leave out the kill-and-restart of the containers (check_faults.sh,
 # about 5 minutes).
 #
@@ -209,8 +209,23 @@ cut_test() { # name cut-command restore-command [--released-late]
   python3 "$HERE/check_partition.py" "$TELEOP_REPORT_DIR/$name-wrist.jsonl" \
     "$TELEOP_REPORT_DIR/$name-status.jsonl" "$t_on" "$t_off" $flag
 }
-cut_test partition "link partition on" "link partition off" --released-late
-cut_test pause "compose pause pc1-wrist-tracker" "compose unpause pc1-wrist-tracker"
+# A cut can only be judged if the arm was following when it came; if the arm had
+# stopped on its own just before (check_partition.py exits 2 and shows why), the cut
+# runs again, at most three times in all, and the tries are counted in the log.
+cut_test_judged() {
+  local try rc
+  for try in 1 2 3; do
+    rc=0
+    cut_test "$@" || rc=$?
+    if [[ $rc -ne 2 ]]; then
+      return "$rc"
+    fi
+    echo "compose test: the $1 cut could not be judged (try $try of 3)"
+  done
+  return 1
+}
+cut_test_judged partition "link partition on" "link partition off" --released-late
+cut_test_judged pause "compose pause pc1-wrist-tracker" "compose unpause pc1-wrist-tracker"
 
 # WAN conditions (delay, jitter, loss, bandwidth caps) through the link emulator, the
 # task once per condition: latencies, rates and the PR2 error, and the checks of the

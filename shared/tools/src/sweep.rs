@@ -153,6 +153,22 @@ fn arrivals(path: &Path) -> anyhow::Result<Vec<Arrival>> {
         .collect())
 }
 
+/// Samples per second over the span of `window` (another stream recorded at the same
+/// listener, dense enough to span the run): what a sparse stream (a camera view under
+/// a bandwidth cap: two views 2 ms apart are not 500 Hz) delivered over the run.
+/// Without a window, over its own span ([`rate_hz`]).
+fn rate_over_hz(a: &[Arrival], window: &[Arrival]) -> f64 {
+    match (window.first(), window.last()) {
+        (Some(f), Some(l)) if l.received_s > f.received_s => {
+            a.iter()
+                .filter(|x| (f.received_s..=l.received_s).contains(&x.received_s))
+                .count() as f64
+                / (l.received_s - f.received_s)
+        }
+        _ => rate_hz(a),
+    }
+}
+
 /// Samples per second between the first and the last arrival.
 fn rate_hz(a: &[Arrival]) -> f64 {
     match (a.first(), a.last()) {
@@ -356,7 +372,7 @@ pub fn condition(dir: &Path) -> anyhow::Result<ConditionResult> {
         HAND_ACTIVE_AFTER_TARGETS_S,
     );
 
-    let camera_view_rate_hz = rate_hz(&camera);
+    let camera_view_rate_hz = rate_over_hz(&camera, &pr2_at_operator);
     if let Some(cap) = rate_cap_mbit(&settings)
         && cap >= GIVE_WAY_MIN_MBIT
     {
@@ -858,6 +874,13 @@ mod tests {
         let a: Vec<Arrival> = (0..11).map(|i| pose(0.0, f64::from(i) * 0.1)).collect();
         assert!((rate_hz(&a) - 10.0).abs() < 1e-9);
         assert_eq!(rate_hz(&a[..1]), 0.0);
+        // Two views 2 ms apart during a 1 s run: 2 Hz over the run, not 500.
+        let views = [pose(0.0, 0.500), pose(0.0, 0.502)];
+        assert!((rate_hz(&views) - 500.0).abs() < 1e-6);
+        assert!((rate_over_hz(&views, &a) - 2.0).abs() < 1e-9);
+        assert_eq!(rate_over_hz(&[], &a), 0.0);
+        // Without a window, its own span.
+        assert!((rate_over_hz(&a, &[]) - 10.0).abs() < 1e-9);
     }
 
     #[test]

@@ -9,7 +9,10 @@
 //!   +jitter)` after it was read (never before `delay - jitter`, never before 0), in
 //!   order, as TCP delivers;
 //! * **bandwidth caps**: the chunks leave one after the other at `rate_mbit`, so a
-//!   burst queues; the queue is bounded in time (`queue_ms`: the bytes waiting for
+//!   burst queues; one capped wire each way, shared by all connections (a router
+//!   that opens two, one per priority class, gets the rate once, not twice), each
+//!   connection holding at most an equal share of its buffer, so connections with
+//!   bytes to send share the rate about equally (per-flow fair queueing); the queue is bounded in time (`queue_ms`: the bytes waiting for
 //!   the capped link take at most this long to leave, as in a bottleneck router's
 //!   buffer), and a full queue stops the forwarder reading from the sender, whose
 //!   TCP send buffer then fills: the backpressure a slow link gives, which Zenoh
@@ -32,6 +35,9 @@
 
 pub mod measure;
 pub mod proxy;
+
+use std::collections::VecDeque;
+use std::sync::{Arc, Mutex, PoisonError};
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -197,6 +203,23 @@ impl Impairment {
         }
         (backlog_s - self.queue_ms * 1e-3).max(0.0)
     }
+
+    /// The same for one of `connections` sharing the capped link, whose own bytes
+    /// need `own_backlog_s` of it: also until its own share is back within
+    /// `queue_ms / connections`. So no connection holds more than its share of the
+    /// buffer, and the link's rate is shared about equally among the connections that
+    /// have bytes to send (as per-flow fair queueing does on a router, and TCP's
+    /// congestion control on average behind a drop-tail one), whatever the size of
+    /// the reads; a connection that needs less than its share gets all it needs,
+    /// waiting behind at most the others' shares.
+    pub fn hold_shared_s(&self, backlog_s: f64, own_backlog_s: f64, connections: u64) -> f64 {
+        if self.rate_mbit.is_none() {
+            return 0.0;
+        }
+        #[allow(clippy::cast_precision_loss)]
+        let share_s = self.queue_ms * 1e-3 / connections.max(1) as f64;
+        self.hold_s(backlog_s).max(own_backlog_s - share_s)
+    }
 }
 
 /// A control-port command, one per line.
@@ -231,14 +254,45 @@ impl Command {
     }
 }
 
+/// The capped wire of one direction, shared by every connection that crosses the link
+/// that way (one bottleneck, as on a real WAN: two TCP connections between the same
+/// sites share its rate and its buffer, they do not get one each): when it is free
+/// for the next chunk, s.
+#[derive(Debug, Clone)]
+pub struct Wire(Arc<Mutex<f64>>);
+
+impl Default for Wire {
+    fn default() -> Self {
+        Self(Arc::new(Mutex::new(f64::NEG_INFINITY)))
+    }
+}
+
+impl Wire {
+    fn free_s(&self) -> f64 {
+        *self.0.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// Books the wire for `on_wire_s` from `t_s` or when it is free, whichever is
+    /// later; when the chunk has left, s.
+    fn book(&self, t_s: f64, on_wire_s: f64) -> f64 {
+        let mut free = self.0.lock().unwrap_or_else(PoisonError::into_inner);
+        *free = t_s.max(*free) + on_wire_s;
+        *free
+    }
+}
+
 /// One direction of one connection: when each chunk read from the sender is delivered.
+/// The delay, jitter and losses are the connection's own; the capped wire it is sent
+/// on may be shared with other connections ([`Link::on`]).
 #[derive(Debug)]
 pub struct Link {
     rng: ChaCha8Rng,
-    /// When the capped link is free for the next chunk, s.
-    free_s: f64,
+    wire: Wire,
     /// When the previous chunk is delivered (TCP is in order), s.
     last_s: f64,
+    /// This connection's chunks on the wire not yet sent: when each has left, and how
+    /// long it takes to send, s.
+    mine: VecDeque<(f64, f64)>,
     /// Chunks delayed by a loss so far.
     pub losses: u64,
     /// Chunks scheduled so far.
@@ -246,14 +300,20 @@ pub struct Link {
 }
 
 impl Link {
-    /// A direction drawing from stream `stream` of seed `seed`.
+    /// A direction drawing from stream `stream` of seed `seed`, on a wire of its own.
     pub fn new(seed: u64, stream: u64) -> Self {
+        Self::on(Wire::default(), seed, stream)
+    }
+
+    /// A direction drawing from stream `stream` of seed `seed`, sent on `wire`.
+    pub fn on(wire: Wire, seed: u64, stream: u64) -> Self {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         rng.set_stream(stream);
         Self {
             rng,
-            free_s: f64::NEG_INFINITY,
+            wire,
             last_s: f64::NEG_INFINITY,
+            mine: VecDeque::new(),
             losses: 0,
             chunks: 0,
         }
@@ -262,24 +322,37 @@ impl Link {
     /// How long the capped link needs at `t_s` to send the chunks already waiting for
     /// it, s (zero once it is idle).
     pub fn backlog_s(&self, t_s: f64) -> f64 {
-        (self.free_s - t_s).max(0.0)
+        (self.wire.free_s() - t_s).max(0.0)
+    }
+
+    /// How much of that backlog is this connection's own at `t_s`, s.
+    pub fn own_backlog_s(&mut self, t_s: f64) -> f64 {
+        while self.mine.front().is_some_and(|(left, _)| *left <= t_s) {
+            self.mine.pop_front();
+        }
+        self.mine
+            .iter()
+            .map(|(left, on_wire)| on_wire.min(left - t_s))
+            .sum()
     }
 
     /// When a chunk of `len` bytes read at `t_s` is delivered under `imp` (not
     /// partitioned: the forwarder holds chunks while it is).
     pub fn schedule(&mut self, imp: &Impairment, t_s: f64, len: usize) -> f64 {
         self.chunks += 1;
-        // Onto the wire when the link is free, for len * 8 / rate.
-        let start = t_s.max(self.free_s);
+        // Onto the wire when it is free, for len * 8 / rate.
         #[allow(clippy::cast_precision_loss)]
         let on_wire = imp.rate_mbit.map_or(0.0, |r| (len * 8) as f64 / (r * 1e6));
-        self.free_s = start + on_wire;
+        let sent = self.wire.book(t_s, on_wire);
+        if on_wire > 0.0 {
+            self.mine.push_back((sent, on_wire));
+        }
         let jitter = if imp.jitter_ms > 0.0 {
             self.rng.random_range(-imp.jitter_ms..=imp.jitter_ms)
         } else {
             0.0
         };
-        let mut arrive = self.free_s + (imp.delay_ms + jitter) * 1e-3;
+        let mut arrive = sent + (imp.delay_ms + jitter) * 1e-3;
         if imp.loss > 0.0 {
             let segments = len.div_ceil(SEGMENT_BYTES).max(1);
             let p_any = 1.0 - (1.0 - imp.loss).powi(i32::try_from(segments).unwrap_or(i32::MAX));
@@ -365,6 +438,75 @@ mod tests {
         assert_eq!(imp.hold_s(link.backlog_s(0.06)), 0.0);
         assert_eq!(link.backlog_s(0.2), 0.0);
         assert_eq!(Impairment::default().hold_s(5.0), 0.0);
+    }
+
+    #[test]
+    fn connections_on_one_wire_share_its_rate_and_keep_their_own_order() {
+        let imp = Impairment {
+            rate_mbit: Some(8.0),
+            ..Impairment::default()
+        };
+        let wire = Wire::default();
+        let mut a = Link::on(wire.clone(), 1, 0);
+        let mut b = Link::on(wire, 1, 2);
+        // Two connections, five 10 kB chunks each at once, on 8 Mbit/s = 1 MB/s: the
+        // ten leave one every 10 ms, whichever connection sent them (twice as long
+        // as on a wire each), and each connection's arrive in its own order.
+        let mut arrivals = Vec::new();
+        for _ in 0..5 {
+            arrivals.push(a.schedule(&imp, 0.0, 10_000));
+            arrivals.push(b.schedule(&imp, 0.0, 10_000));
+        }
+        for (k, t) in arrivals.iter().enumerate() {
+            #[allow(clippy::cast_precision_loss)]
+            let expect = (k + 1) as f64 * 0.01;
+            assert!((t - expect).abs() < 1e-9, "{k}: {t}");
+        }
+        // Both see the one backlog: 100 ms at t = 0.
+        assert!((a.backlog_s(0.0) - 0.1).abs() < 1e-9);
+        assert!((b.backlog_s(0.0) - 0.1).abs() < 1e-9);
+        // On wires of their own, each would be done in 50 ms.
+        let mut c = Link::new(1, 0);
+        let mut d = Link::new(1, 2);
+        for _ in 0..5 {
+            c.schedule(&imp, 0.0, 10_000);
+            d.schedule(&imp, 0.0, 10_000);
+        }
+        assert!((c.backlog_s(0.0) - 0.05).abs() < 1e-9);
+        assert!((d.backlog_s(0.0) - 0.05).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_connection_is_held_at_its_share_of_the_buffer() {
+        let imp = Impairment {
+            rate_mbit: Some(8.0),
+            queue_ms: 50.0,
+            ..Impairment::default()
+        };
+        let wire = Wire::default();
+        let mut bulk = Link::on(wire.clone(), 1, 0);
+        let mut small = Link::on(wire, 1, 2);
+        // Four 10 kB chunks of one connection (40 ms at 1 MB/s), one 1 kB of the
+        // other behind them.
+        for _ in 0..4 {
+            bulk.schedule(&imp, 0.0, 10_000);
+        }
+        small.schedule(&imp, 0.0, 1_000);
+        assert!((bulk.own_backlog_s(0.0) - 0.04).abs() < 1e-9);
+        assert!((small.own_backlog_s(0.0) - 0.001).abs() < 1e-9);
+        // The link's 41 ms are within its 50 ms; alone, the bulk connection could go
+        // on, but of two it may hold only 25 ms: it waits until 40 - 25 = 15 ms, and
+        // the small one, within its share, does not.
+        let total = bulk.backlog_s(0.0);
+        assert_eq!(imp.hold_s(total), 0.0);
+        assert_eq!(imp.hold_shared_s(total, bulk.own_backlog_s(0.0), 1), 0.0);
+        let hold = imp.hold_shared_s(total, bulk.own_backlog_s(0.0), 2);
+        assert!((hold - 0.015).abs() < 1e-9, "{hold}");
+        assert_eq!(imp.hold_shared_s(total, small.own_backlog_s(0.0), 2), 0.0);
+        // Half-way through the second chunk: 25 ms of the bulk's own are left.
+        assert!((bulk.own_backlog_s(0.015) - 0.025).abs() < 1e-9);
+        // Uncapped, nobody is held.
+        assert_eq!(Impairment::default().hold_shared_s(1.0, 1.0, 2), 0.0);
     }
 
     #[test]

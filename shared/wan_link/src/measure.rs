@@ -24,6 +24,8 @@ pub struct Rig {
     pub emulator: Arc<Emulator>,
     pub sender: TcpStream,
     pub receiver: TcpStream,
+    sink: TcpListener,
+    front: std::net::SocketAddr,
     tasks: Vec<tokio::task::JoinHandle<()>>,
 }
 
@@ -49,21 +51,40 @@ impl Rig {
             front,
             sink_addr.to_string(),
         ));
-        // The sender's send buffer as small as the compose system's routers ask for
-        // on their WAN links, so what the sender has written and the receiver not yet
-        // read is what the emulator holds (and those small buffers).
-        let socket = TcpSocket::new_v4()?;
-        socket.set_send_buffer_size(SENDER_BUFFER_BYTES)?;
-        let sender = socket.connect(front_addr).await?;
-        sender.set_nodelay(true)?;
-        let (receiver, _) = sink.accept().await?;
+        let (sender, receiver) = connect(&sink, front_addr).await?;
         Ok(Self {
             emulator,
             sender,
             receiver,
+            sink,
+            front: front_addr,
             tasks: vec![fwd],
         })
     }
+
+    /// Another connection through the same emulator: its sender and receiver.
+    ///
+    /// # Errors
+    /// Connecting on loopback.
+    pub async fn connection(&self) -> std::io::Result<(TcpStream, TcpStream)> {
+        connect(&self.sink, self.front).await
+    }
+}
+
+/// A connection through the emulator listening at `front` to `sink`.
+async fn connect(
+    sink: &TcpListener,
+    front: std::net::SocketAddr,
+) -> std::io::Result<(TcpStream, TcpStream)> {
+    // The sender's send buffer as small as the compose system's routers ask for on
+    // their WAN links, so what the sender has written and the receiver not yet read is
+    // what the emulator holds (and those small buffers).
+    let socket = TcpSocket::new_v4()?;
+    socket.set_send_buffer_size(SENDER_BUFFER_BYTES)?;
+    let sender = socket.connect(front).await?;
+    sender.set_nodelay(true)?;
+    let (receiver, _) = sink.accept().await?;
+    Ok((sender, receiver))
 }
 
 /// One-way delays of `n` 64-byte messages sent every `every`, ms.
@@ -117,9 +138,22 @@ pub struct Transfer {
 /// # Errors
 /// The loopback connection failing.
 pub async fn throughput(rig: &mut Rig, bytes: usize) -> std::io::Result<Transfer> {
+    transfer(&mut rig.sender, &mut rig.receiver, bytes).await
+}
+
+/// A bulk transfer of `bytes` from `sender` to `receiver` (a connection through an
+/// emulator), as fast as the sender can write.
+///
+/// # Errors
+/// The connection failing.
+pub async fn transfer(
+    sender: &mut TcpStream,
+    receiver: &mut TcpStream,
+    bytes: usize,
+) -> std::io::Result<Transfer> {
     use std::sync::atomic::{AtomicUsize, Ordering};
-    let (mut rx, _) = rig.receiver.split();
-    let (_, mut tx) = rig.sender.split();
+    let (mut rx, _) = receiver.split();
+    let (_, mut tx) = sender.split();
     let sent = AtomicUsize::new(0);
     let start = Instant::now();
     let send = async {

@@ -1,6 +1,7 @@
 //! The forwarding: every connection accepted on the listen address is paired with a
 //! fresh connection to the upstream (the remote router), and each direction runs its
-//! own [`Link`]: a reader takes chunks from the sender and schedules them, a writer
+//! own [`Link`] (its delay, jitter and losses) on the direction's one capped [`Wire`],
+//! which all connections share: a reader takes chunks from the sender and schedules them, a writer
 //! delivers each at its time (and not while partitioned). A reader stops reading while
 //! the capped link's backlog is over `queue_ms` (or [`IN_FLIGHT_BYTES`] are in flight),
 //! so the sender's TCP sees the backpressure of a slow link; the sockets' kernel
@@ -18,7 +19,7 @@ use tokio::net::{TcpListener, TcpSocket, TcpStream};
 use tokio::sync::{Mutex, Notify, watch};
 use tokio::time::Instant;
 
-use crate::{Command, IN_FLIGHT_BYTES, Impairment, Link};
+use crate::{Command, IN_FLIGHT_BYTES, Impairment, Link, Wire};
 
 /// Largest chunk read at once, bytes.
 const CHUNK_BYTES: usize = 16 * 1024;
@@ -84,6 +85,9 @@ pub struct Emulator {
     /// `SO_RCVBUF` and `SO_SNDBUF` of the sockets it opens, bytes; `None`: the
     /// kernel's autotuning.
     socket_bytes: Option<u32>,
+    /// The capped wire of each direction (`[to upstream, from upstream]`), shared by
+    /// all connections.
+    wires: [Wire; 2],
 }
 
 impl Emulator {
@@ -96,6 +100,7 @@ impl Emulator {
             seed,
             epoch: Instant::now(),
             socket_bytes: (socket_kb > 0).then(|| socket_kb.saturating_mul(1024)),
+            wires: [Wire::default(), Wire::default()],
         })
     }
 
@@ -200,8 +205,20 @@ pub async fn forward(emulator: Arc<Emulator>, listener: TcpListener, upstream: S
         let k = index;
         index += 1;
         tokio::spawn(async move {
-            let up = pump(em.clone(), cr, sw, Link::new(em.seed, 2 * k), 0);
-            let down = pump(em.clone(), sr, cw, Link::new(em.seed, 2 * k + 1), 1);
+            let up = pump(
+                em.clone(),
+                cr,
+                sw,
+                Link::on(em.wires[0].clone(), em.seed, 2 * k),
+                0,
+            );
+            let down = pump(
+                em.clone(),
+                sr,
+                cw,
+                Link::on(em.wires[1].clone(), em.seed, 2 * k + 1),
+                1,
+            );
             // Either direction ending ends the pair (a closed router connection).
             tokio::select! {
                 () = up => {}
@@ -266,9 +283,15 @@ async fn pump(
                 }
                 woken.await;
             }
-            // And while the capped link's buffer is full: until its backlog drains
-            // to `queue_ms` (re-checked at least every 50 ms, for a changed setting).
-            let hold = em.impairment().hold_s(link.backlog_s(em.now_s()));
+            // And while the capped link's buffer is full, or this connection's share
+            // of it (`queue_ms` shared equally by the open connections): until the
+            // backlog drains (re-checked at least every 50 ms, for a changed setting).
+            let now = em.now_s();
+            let hold = em.impairment().hold_shared_s(
+                link.backlog_s(now),
+                link.own_backlog_s(now),
+                em.stats.open.load(Ordering::Relaxed),
+            );
             if hold > 0.0 {
                 tokio::time::sleep(Duration::from_secs_f64(hold.min(0.05))).await;
                 continue;

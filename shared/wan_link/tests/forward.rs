@@ -1,18 +1,18 @@
 //! The emulator's guarantees, through real TCP connections on loopback: nothing arrives
 //! before its configured delay minus jitter, in order; nothing crosses a partition and
 //! everything held arrives, in order, when it ends; no transfer beats the bandwidth
-//! cap; a full queue holds the sender (the waiting bytes stay bounded); delay alone
-//! does not cap the rate; losses cost
-//! the retransmission delay; bad control lines change nothing and say why.
-//! (Upper bounds on delay depend on the machine's load: `wan_link measure` reports
-//! them, docs/network.md has the figures.)
+//! cap, and two connections share it; a full queue holds the sender (the waiting
+//! bytes stay bounded); delay alone does not cap the rate; losses cost the
+//! retransmission delay; bad control lines change nothing and say why. (Upper bounds
+//! on delay depend on the machine's load: `wan_link measure` reports them,
+//! docs/network.md has the figures.)
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 use teleop_wan_link::Impairment;
-use teleop_wan_link::measure::{Rig, delays, quantile, throughput};
+use teleop_wan_link::measure::{Rig, delays, quantile, throughput, transfer};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
 fn imp(settings: &str) -> Impairment {
@@ -84,6 +84,32 @@ async fn no_transfer_beats_the_cap_and_a_full_queue_holds_the_sender() {
         "the sender got {} KiB ahead of the receiver",
         t.max_lead_bytes >> 10
     );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn two_connections_share_the_cap() {
+    // Two connections through one 8 Mbit/s (1 MB/s) link, 512 KiB each at once: the
+    // link is one bottleneck, so together they get the rate once (a router that opens
+    // a second connection for its camera views gains no bandwidth by it).
+    let mut rig = Rig::new(imp("rate_mbit=8 queue_ms=50"), 1).await.unwrap();
+    let (mut s2, mut r2) = rig.connection().await.unwrap();
+    let start = std::time::Instant::now();
+    let (a, b) = tokio::join!(
+        throughput(&mut rig, 512 << 10),
+        transfer(&mut s2, &mut r2, 512 << 10)
+    );
+    let (a, b) = (a.unwrap(), b.unwrap());
+    let together = f64::from(1u32 << 20) / start.elapsed().as_secs_f64();
+    assert!(
+        together <= 1.0e6 * 1.05,
+        "{together} B/s through one 8 Mbit/s link, {} + {} B/s",
+        a.bytes_per_s,
+        b.bytes_per_s
+    );
+    // And neither starves: each got at least a third of it.
+    for t in [a, b] {
+        assert!(t.bytes_per_s >= 1.0e6 / 3.0 * 0.9, "{} B/s", t.bytes_per_s);
+    }
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
