@@ -331,13 +331,12 @@ fn judge_cut(following: bool, stop_after_s: f64) -> (i32, String) {
             + "\n"
     };
     let mut reports = status(1.0, 1, 0) + &status(2.0, 2, 0);
-    if following {
-        reports += &status(last - 0.5, 2, 0);
-        reports += &status(last + stop_after_s, 1, 1);
+    reports += &if following {
+        status(last - 0.5, 2, 0)
     } else {
-        reports += &status(9.0, 1, 1);
-        reports += &status(last + stop_after_s, 1, 1);
-    }
+        status(9.0, 1, 1)
+    };
+    reports += &status(last + stop_after_s, 1, 1);
     reports += &status(14.0, 1, 1);
     std::fs::write(dir.join("wrist.jsonl"), wrist).unwrap();
     std::fs::write(dir.join("status.jsonl"), reports).unwrap();

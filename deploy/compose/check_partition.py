@@ -82,10 +82,10 @@ def main(wrist_path, status_path, partition_on_s, partition_off_s, released_late
               " the cut cannot be judged; its reports before the cut:")
         explain(arm, wrist, last)
         return 2
-    check(True, "the arm was Active (clutched, moving) when the commands were cut")
+    print("  ok  the arm was Active (clutched, moving) when the commands were cut")
     stops = [s for s in arm if s["_meta"]["sent_s"] > last and s["lifecycle_state"] != ACTIVE]
     check(bool(stops), "the arm left Active after the cut")
-    if not (at_cut and stops):
+    if not stops:
         return 1
     stop = stops[0]["_meta"]["sent_s"]
     late = stop - deadline

@@ -12,9 +12,9 @@
 //!   burst queues; one capped wire each way, shared by all connections (a router
 //!   that opens two, one per priority class, gets the rate once, not twice), each
 //!   connection holding at most an equal share of its buffer, so connections with
-//!   bytes to send share the rate about equally (per-flow fair queueing); the queue is bounded in time (`queue_ms`: the bytes waiting for
-//!   the capped link take at most this long to leave, as in a bottleneck router's
-//!   buffer), and a full queue stops the forwarder reading from the sender, whose
+//!   bytes to send share the rate about equally (per-flow fair queueing); the queue
+//!   is bounded in time (`queue_ms`: the bytes waiting for the capped link take at
+//!   most this long to leave, as in a bottleneck router's buffer), and a full queue stops the forwarder reading from the sender, whose
 //!   TCP send buffer then fills: the backpressure a slow link gives, which Zenoh
 //!   answers by dropping what its congestion control allows (camera images) before it
 //!   blocks what must arrive. The forwarder's own sockets have small kernel buffers

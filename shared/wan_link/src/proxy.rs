@@ -1,8 +1,8 @@
 //! The forwarding: every connection accepted on the listen address is paired with a
 //! fresh connection to the upstream (the remote router), and each direction runs its
 //! own [`Link`] (its delay, jitter and losses) on the direction's one capped [`Wire`],
-//! which all connections share: a reader takes chunks from the sender and schedules them, a writer
-//! delivers each at its time (and not while partitioned). A reader stops reading while
+//! which all connections share: a reader takes chunks from the sender and schedules
+//! them, a writer delivers each at its time (and not while partitioned). A reader stops reading while
 //! the capped link's backlog is over `queue_ms` (or [`IN_FLIGHT_BYTES`] are in flight),
 //! so the sender's TCP sees the backpressure of a slow link; the sockets' kernel
 //! buffers are kept small ([`crate::DEFAULT_SOCKET_KB`]) so that backlog cannot hide in
