@@ -21,12 +21,21 @@ fn check<C: NodeConfig>(path: &Path) {
     teleop_node::config::load_checked::<C>(path).unwrap_or_else(|e| panic!("{e}"));
 }
 
-fn equals_default<C: NodeConfig + PartialEq + std::fmt::Debug>(path: &Path) {
+fn equals_default<C: NodeConfig + PartialEq + std::fmt::Debug + serde::Serialize>(path: &Path) {
     let shipped: C = load_toml(path).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(
         shipped,
         C::default(),
         "{} is not the defaults; regenerate it with `<node> --show-default-config`",
+        path.display()
+    );
+    // Every field written out: a field missing from the file parses as its default
+    // and would pass above, leaving the example without a setting users can see.
+    let written: toml::Value = toml::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    assert_eq!(
+        written,
+        toml::Value::try_from(C::default()).unwrap(),
+        "{} does not list every field; regenerate it with `<node> --show-default-config`",
         path.display()
     );
 }

@@ -112,13 +112,42 @@ async fn the_hand_node_follows_with_enable_and_holds_when_targets_stop() {
         "moved without the clutch: {start} -> {no_clutch}"
     );
 
-    // 2 s with enable: the finger reaches the target.
-    for _ in 0..100 {
+    // 2 s with enable: the finger reaches the target, and the fingers are still there
+    // (the last 0.5 s): the stiff part of the loop runs in the hand's own loop (joint
+    // impedance), not across the bus, where it made the fingers chatter at 16 rad/s
+    // against the effort cap.
+    let mut settled = Vec::new();
+    for i in 0..100 {
         send(Some(0.9), true);
         tokio::time::sleep(period).await;
+        while let Some(r) = states.try_recv() {
+            if i >= 75 {
+                settled.push(wire::hand_state(&r.msg, None).unwrap());
+            }
+        }
     }
     let followed = ffj3().await;
     assert!((followed - 0.9).abs() < 0.08, "FFJ3 at {followed}");
+    // The state subscription keeps the newest: about one per 20 ms period.
+    assert!(settled.len() >= 20, "{} states in 0.5 s", settled.len());
+    let median = |f: &dyn Fn(&teleop_hardware::HandState) -> f64| {
+        let mut v: Vec<f64> = settled.iter().map(f).collect();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let speed = median(&|s| s.velocity_rad_s.amax());
+    let effort = median(&|s| s.effort_nm.amax());
+    println!(
+        "settled: fastest joint median {speed:.3} rad/s, largest effort median {effort:.3} N m"
+    );
+    assert!(
+        speed < 0.5,
+        "fingers not still at the target: {speed} rad/s"
+    );
+    assert!(
+        effort < 1.0,
+        "efforts near the 2 N m cap at rest: {effort} N m"
+    );
 
     // A NaN target is refused (named, counted) and changes nothing.
     let mut bad = targets(0.9);

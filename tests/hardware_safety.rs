@@ -21,7 +21,7 @@ use teleop_system_tests::{free_port, isolated_pair};
 /// Publishes `cmd` at 100 Hz for `duration` while collecting arm and hand states.
 async fn flood(
     arm_pub: &teleop_bus::Publisher<JointState>,
-    hand_pub: &teleop_bus::Publisher<JointState>,
+    hand_pub: &teleop_bus::Publisher<teleop_msgs::JointCommand>,
     arm: &ArmCommand<7>,
     hand: &HandCommand,
     duration: Duration,

@@ -29,12 +29,10 @@ MOVING_ABOVE_RAD_S = 0.03
 #   "hold": the Shadow hand controller holds the last posture (its targets' source is
 #           gone): the controller counts hand.hold.stale_target and the posture, each
 #           joint averaged over HOLD_WINDOW_S, drifts less than HOLD_DRIFT_RAD between
-#           the first and the last window. The fingers' effort loop keeps them moving
-#           about that posture (the hand controller's 500 Hz effort loop over the bus
-#           chatters: joint speeds of 10-40 rad/s at saturated effort, in the one-machine
-#           run too; an open problem noted on the hand controller), so their speed is not
-#           the measure, and averaged postures move by up to 0.2 rad between windows
-#           in normal following;
+#           the first and the last window. (Written when the fingers' effort loop over
+#           the bus chattered at 10-40 rad/s about the posture, so their speed was not
+#           the measure; fixed since by the joint-impedance command, docs/remote-site.md,
+#           so this may become a stillness check once re-run across the containers.)
 #   "displacement": the listener's own router was the one killed, nothing is heard
 #           while it is gone: the arm before the kill against the arm once heard again.
 HOLD_WINDOW_S = 0.25

@@ -43,7 +43,7 @@ use std::collections::BTreeMap;
 use nalgebra::SVector;
 use serde::{Deserialize, Serialize};
 use teleop_control::hand::{
-    HandControllerConfig, HandMode, HandOutput, JointInput, ShadowHandController,
+    HandControllerConfig, HandMode, HandOutput, HardwareInterface, JointInput, ShadowHandController,
 };
 use teleop_control::{Closed, ConfigError, GateMode, OperatorGate, OperatorSample};
 use teleop_hardware::wire::{self, WireError};
@@ -58,6 +58,7 @@ pub fn hand_command(out: HandOutput<17>) -> HandCommand {
     match out {
         HandOutput::Effort(t) => HandCommand::Effort(t),
         HandOutput::Position(q) => HandCommand::Position(q),
+        HandOutput::Impedance(z) => HandCommand::Impedance(z),
     }
 }
 
@@ -85,6 +86,13 @@ pub struct HandSupervisorConfig {
     pub gravity_compensation: bool,
     /// Gravity in the PR2 `base_link` frame, m/s^2. Default `[0, 0, -9.81]`.
     pub gravity_m_s2: [f64; 3],
+    /// How the laws reach the hand: `"impedance"` (default) sends each period the law
+    /// as a joint impedance (gains, set point, feed-forward) that the hand's own loop
+    /// evaluates with its newest measurement, so the stiff part of the fingers' loop
+    /// never crosses the bus; `"effort"` sends the efforts, closing the whole loop
+    /// through the bus (its delay then limits the usable gains: over the bus at
+    /// 500 Hz the default gains make the fingers chatter, docs/remote-site.md).
+    pub interface: HardwareInterface,
     /// The control laws, their gains and effort limits.
     pub controller: HandControllerConfig<17>,
 }
@@ -99,6 +107,7 @@ impl Default for HandSupervisorConfig {
             target_limit_margin_rad: 0.1,
             gravity_compensation: true,
             gravity_m_s2: [0.0, 0.0, -9.81],
+            interface: HardwareInterface::Impedance,
             controller: HandControllerConfig::default(),
         }
     }
@@ -268,7 +277,8 @@ impl HandSupervisor {
             None
         };
         Ok(Self {
-            controller: ShadowHandController::new(config.controller)?,
+            controller: ShadowHandController::new(config.controller)?
+                .with_interface(config.interface),
             gravity,
             gravity_unknown: 0,
             config,

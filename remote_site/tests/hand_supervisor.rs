@@ -5,6 +5,7 @@
 
 use nalgebra::SVector;
 use teleop_control::OperatorSample;
+use teleop_control::hand::HardwareInterface;
 use teleop_hardware::HandCommand;
 use teleop_interfaces::joints::SHADOW_FINGER_JOINTS as FINGER_JOINTS;
 use teleop_interfaces::joints::finger_joint_index;
@@ -92,6 +93,8 @@ fn max_effort(cmds: &[(HandCommand, Option<HoldReason>)]) -> f64 {
     cmds.iter()
         .map(|(c, _)| match c {
             HandCommand::Effort(t) => t.amax(),
+            // The most the hand's own loop may apply.
+            HandCommand::Impedance(z) => z.max_effort_nm.amax(),
             HandCommand::Position(_) => f64::INFINITY,
         })
         .fold(0.0, f64::max)
@@ -394,4 +397,76 @@ fn a_supervisor_started_with_the_switch_held_waits_until_the_operator_lets_go() 
     let out = run(&mut w, &mut s, 0.5, Some(&target), &enabled, true);
     assert_eq!(out.last().unwrap().1, None, "follows after a fresh press");
     assert_eq!(engagements(&s), 1);
+}
+
+/// The supervisor across a bus, in process and deterministic: its hand state is
+/// `state_lag` periods old and refreshed every other period (the simulator publishes at
+/// 250 Hz, the node runs at 500 Hz), its command reaches the hand one period late.
+/// Returns the medians, over the last 0.5 s of 2 s following a target, of the fastest
+/// joint's speed (rad/s) and of the largest effort (N m).
+fn across_a_bus(interface: HardwareInterface, state_lag: usize) -> (f64, f64) {
+    use std::collections::VecDeque;
+    let mut w = World::new(WorldConfig::default()).unwrap();
+    let (lo, hi) = HandSupervisor::shadow_hand_limits().unwrap();
+    let config = HandSupervisorConfig {
+        interface,
+        ..HandSupervisorConfig::default()
+    };
+    let mut s = HandSupervisor::new(config, lo, hi).unwrap();
+    prime(&mut s, &w);
+    let mut target = SVector::<f64, 17>::zeros();
+    target[finger_joint_index("rh_FFJ3").unwrap()] = 0.8;
+    target[finger_joint_index("rh_MFJ3").unwrap()] = 0.6;
+    let mut states = VecDeque::from(vec![w.hand_state(); state_lag + 1]);
+    let mut in_flight: Option<HandCommand> = None;
+    let (mut speeds, mut efforts) = (Vec::new(), Vec::new());
+    let steps = (2.0 / DT).round() as usize;
+    for k in 0..steps {
+        let t = w.time_s();
+        s.accept_target(&target_msg(&target), t).unwrap();
+        if k % 2 == 0 {
+            states.push_back(w.hand_state());
+            states.pop_front();
+        }
+        let seen = states[0];
+        let arm = w.arm_position_rad();
+        let step = s.step(t, enabled(t), true, &seen, Some(&arm));
+        if let Some(c) = in_flight.replace(step.command) {
+            w.command_hand(&c);
+        }
+        w.step(DT);
+        if k >= steps - (0.5 / DT) as usize {
+            let now = w.hand_state();
+            speeds.push(now.velocity_rad_s.amax());
+            efforts.push(now.effort_nm.amax());
+        }
+    }
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    (median(speeds), median(efforts))
+}
+
+/// Why the node sends a joint impedance: with the efforts, the fingers' loop closes
+/// across the bus, whose delay meets gains tuned for a 1 kHz loop, and the fingers
+/// chatter at the effort cap; the impedance, evaluated in the hand's own loop, keeps
+/// them still at the target with the same delays.
+#[test]
+fn across_a_bus_the_impedance_keeps_the_fingers_still_where_efforts_chatter() {
+    for lag in [1, 2] {
+        let (speed_z, effort_z) = across_a_bus(HardwareInterface::Impedance, lag);
+        let (speed_e, effort_e) = across_a_bus(HardwareInterface::Effort, lag);
+        println!(
+            "state {lag} periods old: impedance {speed_z:.3} rad/s, {effort_z:.3} N m; \
+             efforts {speed_e:.3} rad/s, {effort_e:.3} N m (medians, fastest joint / largest effort)"
+        );
+        assert!(speed_z < 0.1, "impedance, lag {lag}: {speed_z} rad/s");
+        assert!(effort_z < 1.0, "impedance, lag {lag}: {effort_z} N m");
+        // The scenario does reproduce the problem the impedance removes.
+        assert!(
+            speed_e > 10.0 * speed_z.max(0.1),
+            "efforts, lag {lag}: {speed_e} rad/s"
+        );
+    }
 }

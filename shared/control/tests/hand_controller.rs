@@ -452,3 +452,55 @@ fn runs_are_repeatable_to_the_bit() {
         );
     }
 }
+
+// ---------------------------------------------------------------------------------
+// The joint-impedance interface: the same law, evaluated by the hardware.
+
+/// On the same closed-loop trajectory, every mode's impedance, evaluated where it was
+/// computed, is the effort the effort interface sends; while holding it is the same
+/// direction, scaled to the hold limit.
+#[test]
+fn the_impedance_interface_is_the_same_law() {
+    use teleop_control::hand::HardwareInterface;
+    let target = SVector::<f64, 17>::from_fn(|i, _| 0.05 * i as f64);
+    for mode in MODES {
+        let mut by_effort = controller::<17>(mode);
+        let mut by_impedance = controller::<17>(mode).with_interface(HardwareInterface::Impedance);
+        assert_eq!(by_impedance.interface(), HardwareInterface::Impedance);
+        let mut p = Plant::new(SVector::zeros());
+        for k in 0..2000 {
+            let gravity = SVector::<f64, 17>::repeat(0.01);
+            let input =
+                JointInput::new(p.position_rad, p.velocity_rad_s, target).with_gravity(gravity);
+            let tau = effort(&by_effort.step_input(DT, &input).unwrap());
+            let out = by_impedance.step_input(DT, &input).unwrap();
+            let z = out.impedance().unwrap();
+            assert_eq!(z.position_rad, target);
+            let tau_z = z.effort_at(&p.position_rad, &p.velocity_rad_s);
+            assert!(
+                (tau - tau_z).amax() < 1e-9,
+                "{mode:?} step {k}: {tau} vs {tau_z}"
+            );
+            p.step(&tau, DT);
+        }
+        // Holding: the law frozen, scaled so no joint exceeds the hold limit.
+        let held = by_impedance
+            .hold(DT, &(p.position_rad * 0.5), &p.velocity_rad_s)
+            .unwrap();
+        let tau_hold = effort(
+            &by_effort
+                .hold(DT, &(p.position_rad * 0.5), &p.velocity_rad_s)
+                .unwrap(),
+        );
+        let z = held.impedance().unwrap();
+        let tau_z = z.effort_at(&(p.position_rad * 0.5), &p.velocity_rad_s);
+        assert!(
+            z.max_effort_nm.iter().all(|m| *m == 1.0),
+            "{mode:?}: hold cap"
+        );
+        assert!(
+            (tau_hold - tau_z).amax() < 1e-9,
+            "{mode:?} hold: {tau_hold} vs {tau_z}"
+        );
+    }
+}

@@ -20,6 +20,7 @@ pub mod safety;
 pub mod wire;
 
 use nalgebra::{Isometry3, SVector};
+pub use teleop_control::hand::JointImpedance;
 use teleop_msgs::Image;
 
 pub use safety::{ArmSafety, ArmSafetyConfig, HandSafety, HandSafetyConfig, SafeArm, SafeHand};
@@ -72,25 +73,40 @@ pub struct HandState {
 
 /// Command for the hand.
 #[derive(Debug, Clone, Copy, PartialEq)]
+// Copied every control period without allocating: the impedance stays inline.
+#[allow(clippy::large_enum_variant)]
 pub enum HandCommand {
     /// Joint torques, N m.
     Effort(SVector<f64, FINGER_JOINTS>),
     /// Position targets for the hand's own servo loop (like the real hand's position
     /// controllers), rad.
     Position(SVector<f64, FINGER_JOINTS>),
+    /// A joint impedance the hardware evaluates in its own loop; see [`HandImpedance`].
+    Impedance(HandImpedance),
 }
 
-impl HandCommand {
-    /// The values, whichever the kind.
-    pub fn values(&self) -> &SVector<f64, FINGER_JOINTS> {
-        match self {
-            HandCommand::Effort(v) | HandCommand::Position(v) => v,
-        }
-    }
+/// A joint impedance for the hand's own real-time loop: every period until the next
+/// command, with its newest measurement `q`, `q̇`, the hardware applies
+///
+/// ```text
+/// τ_i = feedforward_i + stiffness_i (position_i - q_i) + damping_i (velocity_i - q̇_i)
+/// τ_i ← clamp(τ_i, -max_effort_i, max_effort_i)
+/// ```
+///
+/// ([`JointImpedance::effort_at`]), so the stiff part of a finger's loop (stiffness,
+/// damping) never waits for the network: a controller across a bus sends gains and set
+/// points, as with the joint impedance interfaces of torque-controlled arms. A real
+/// Shadow hand driver evaluates it in its 1 kHz control loop, where the thesis's
+/// controller ran. The same type the control laws produce.
+pub type HandImpedance = JointImpedance<FINGER_JOINTS>;
 
-    /// True when every value is finite.
+impl HandCommand {
+    /// True when every value (every field of an impedance) is finite.
     pub fn is_finite(&self) -> bool {
-        self.values().iter().all(|v| v.is_finite())
+        match self {
+            HandCommand::Effort(v) | HandCommand::Position(v) => v.iter().all(|x| x.is_finite()),
+            HandCommand::Impedance(z) => z.is_finite(),
+        }
     }
 }
 

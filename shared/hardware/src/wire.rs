@@ -5,9 +5,9 @@
 
 use nalgebra::SVector;
 use teleop_interfaces::joints::{FINGERTIPS, SHADOW_FINGER_JOINTS};
-use teleop_msgs::{FingertipPressures, Header, JointState, Time};
+use teleop_msgs::{FingertipPressures, Header, JointCommand, JointState, Time};
 
-use crate::{ArmCommand, ArmState, FINGER_JOINTS, HandCommand, HandState};
+use crate::{ArmCommand, ArmState, FINGER_JOINTS, HandCommand, HandImpedance, HandState};
 
 /// Why a message could not be turned into a hardware value.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -23,8 +23,10 @@ pub enum WireError {
     },
     #[error("joint `{joint}`: {field} is not finite")]
     NonFinite { joint: String, field: &'static str },
-    #[error("hand command has neither `position` nor `effort` values")]
-    EmptyCommand,
+    #[error("joint `{joint}`: {field} is out of range")]
+    OutOfRange { joint: String, field: &'static str },
+    #[error("command mode `{0}` is none of effort, position, impedance")]
+    UnknownMode(String),
 }
 
 impl WireError {
@@ -34,7 +36,8 @@ impl WireError {
             WireError::MissingJoint(_) => "missing_joint",
             WireError::Length { .. } => "length",
             WireError::NonFinite { .. } => "non_finite",
-            WireError::EmptyCommand => "empty",
+            WireError::OutOfRange { .. } => "out_of_range",
+            WireError::UnknownMode(_) => "unknown_mode",
         }
     }
 }
@@ -71,17 +74,27 @@ pub fn joint_vector<const N: usize>(
         Field::Velocity => &msg.velocity,
         Field::Effort => &msg.effort,
     };
-    if values.len() != msg.name.len() {
+    by_name(&msg.name, values, field.name(), wanted)
+}
+
+/// `values` (the field called `field`, one per name of `names`) for the joints
+/// `wanted`, by name.
+fn by_name<const N: usize>(
+    names: &[String],
+    values: &[f64],
+    field: &'static str,
+    wanted: &[&str; N],
+) -> Result<SVector<f64, N>, WireError> {
+    if values.len() != names.len() {
         return Err(WireError::Length {
-            field: field.name(),
+            field,
             len: values.len(),
-            names: msg.name.len(),
+            names: names.len(),
         });
     }
     let mut out = SVector::<f64, N>::zeros();
     for (i, joint) in wanted.iter().enumerate() {
-        let idx = msg
-            .name
+        let idx = names
             .iter()
             .position(|n| n == joint)
             .ok_or_else(|| WireError::MissingJoint((*joint).to_owned()))?;
@@ -89,7 +102,7 @@ pub fn joint_vector<const N: usize>(
         if !v.is_finite() {
             return Err(WireError::NonFinite {
                 joint: (*joint).to_owned(),
-                field: field.name(),
+                field,
             });
         }
         out[i] = v;
@@ -242,38 +255,81 @@ pub fn hand_state(
     })
 }
 
-/// A hand command as a `JointState` (`effort` or `position`).
-pub fn hand_command_msg(c: &HandCommand, time_s: f64) -> JointState {
-    let (position, effort) = match c {
-        HandCommand::Position(q) => (q.iter().copied().collect(), vec![]),
-        HandCommand::Effort(t) => (vec![], t.iter().copied().collect()),
-    };
-    JointState {
+/// The `mode` of a [`JointCommand`] carrying [`HandCommand::Effort`].
+pub const MODE_EFFORT: &str = "effort";
+/// The `mode` of a [`JointCommand`] carrying [`HandCommand::Position`].
+pub const MODE_POSITION: &str = "position";
+/// The `mode` of a [`JointCommand`] carrying [`HandCommand::Impedance`].
+pub const MODE_IMPEDANCE: &str = "impedance";
+
+/// A hand command as a `JointCommand` (the fields its mode uses; the others empty).
+pub fn hand_command_msg(c: &HandCommand, time_s: f64) -> JointCommand {
+    let list = |v: &SVector<f64, FINGER_JOINTS>| v.iter().copied().collect::<Vec<f64>>();
+    let mut msg = JointCommand {
         header: stamp(time_s),
         name: names(&SHADOW_FINGER_JOINTS),
-        position,
-        velocity: vec![],
-        effort,
+        ..JointCommand::default()
+    };
+    match c {
+        HandCommand::Effort(t) => {
+            msg.mode = MODE_EFFORT.into();
+            msg.effort = list(t);
+        }
+        HandCommand::Position(q) => {
+            msg.mode = MODE_POSITION.into();
+            msg.position = list(q);
+        }
+        HandCommand::Impedance(z) => {
+            msg.mode = MODE_IMPEDANCE.into();
+            msg.position = list(&z.position_rad);
+            msg.velocity = list(&z.velocity_rad_s);
+            msg.effort = list(&z.feedforward_nm);
+            msg.stiffness = list(&z.stiffness_nm_rad);
+            msg.damping = list(&z.damping_nm_s_rad);
+            msg.max_effort = list(&z.max_effort_nm);
+        }
     }
+    msg
 }
 
 /// # Errors
-/// [`WireError`] naming the joint or field at fault, or [`WireError::EmptyCommand`].
-pub fn hand_command(msg: &JointState) -> Result<HandCommand, WireError> {
-    if !msg.effort.is_empty() {
-        Ok(HandCommand::Effort(joint_vector(
-            msg,
-            &SHADOW_FINGER_JOINTS,
-            Field::Effort,
-        )?))
-    } else if !msg.position.is_empty() {
-        Ok(HandCommand::Position(joint_vector(
-            msg,
-            &SHADOW_FINGER_JOINTS,
-            Field::Position,
-        )?))
-    } else {
-        Err(WireError::EmptyCommand)
+/// [`WireError`] naming the joint or field at fault, [`WireError::UnknownMode`], or
+/// [`WireError::OutOfRange`] for a negative stiffness or damping or a maximum effort
+/// that is not positive.
+pub fn hand_command(msg: &JointCommand) -> Result<HandCommand, WireError> {
+    let field = |values: &[f64], name: &'static str| {
+        by_name(&msg.name, values, name, &SHADOW_FINGER_JOINTS)
+    };
+    match msg.mode.as_str() {
+        MODE_EFFORT => Ok(HandCommand::Effort(field(&msg.effort, "effort")?)),
+        MODE_POSITION => Ok(HandCommand::Position(field(&msg.position, "position")?)),
+        MODE_IMPEDANCE => {
+            let z = HandImpedance {
+                position_rad: field(&msg.position, "position")?,
+                velocity_rad_s: field(&msg.velocity, "velocity")?,
+                feedforward_nm: field(&msg.effort, "effort")?,
+                stiffness_nm_rad: field(&msg.stiffness, "stiffness")?,
+                damping_nm_s_rad: field(&msg.damping, "damping")?,
+                max_effort_nm: field(&msg.max_effort, "max_effort")?,
+            };
+            for (values, name, positive) in [
+                (&z.stiffness_nm_rad, "stiffness", false),
+                (&z.damping_nm_s_rad, "damping", false),
+                (&z.max_effort_nm, "max_effort", true),
+            ] {
+                if let Some(i) = values
+                    .iter()
+                    .position(|&x| if positive { x <= 0.0 } else { x < 0.0 })
+                {
+                    return Err(WireError::OutOfRange {
+                        joint: SHADOW_FINGER_JOINTS[i].to_owned(),
+                        field: name,
+                    });
+                }
+            }
+            Ok(HandCommand::Impedance(z))
+        }
+        _ => Err(WireError::UnknownMode(msg.mode.clone())),
     }
 }
 
@@ -334,11 +390,38 @@ mod tests {
         for c in [
             HandCommand::Effort(SVector::from_element(0.2)),
             HandCommand::Position(SVector::from_element(0.3)),
+            HandCommand::Impedance(impedance()),
         ] {
             assert_eq!(hand_command(&hand_command_msg(&c, 0.0)), Ok(c));
         }
         let q = SVector::from_fn(|i, _| i as f64 * 0.01);
         assert_eq!(finger_targets(&finger_targets_msg(&q, 1.0)), Ok(q));
+    }
+
+    fn impedance() -> HandImpedance {
+        HandImpedance {
+            position_rad: SVector::from_fn(|i, _| i as f64 * 0.05),
+            velocity_rad_s: SVector::from_element(-0.5),
+            stiffness_nm_rad: SVector::from_element(20.0),
+            damping_nm_s_rad: SVector::from_element(0.2),
+            feedforward_nm: SVector::from_fn(|i, _| i as f64 * -0.01),
+            max_effort_nm: SVector::from_element(2.0),
+        }
+    }
+
+    #[test]
+    fn impedance_law_is_clamped() {
+        let z = impedance();
+        let q = z.position_rad.add_scalar(-0.01);
+        let tau = z.effort_at(&q, &SVector::zeros());
+        // 20 * 0.01 + 0.2 * -0.5 + ff.
+        assert!((tau[1] - (0.2 - 0.1 - 0.01)).abs() < 1e-12, "{}", tau[1]);
+        let far = z.position_rad.add_scalar(-1.0);
+        assert_eq!(z.effort_at(&far, &SVector::zeros())[3], 2.0);
+        assert_eq!(
+            z.effort_at(&z.position_rad.add_scalar(1.0), &SVector::zeros())[3],
+            -2.0
+        );
     }
 
     #[test]
@@ -373,11 +456,48 @@ mod tests {
             arm_command(&PR2_ARM_JOINTS, &msg),
             Err(WireError::Length { .. })
         ));
-        let empty = JointState {
+        let unnamed = JointCommand {
             name: names(&SHADOW_FINGER_JOINTS),
             ..Default::default()
         };
-        assert_eq!(hand_command(&empty), Err(WireError::EmptyCommand));
+        let e = hand_command(&unnamed).unwrap_err();
+        assert_eq!(e, WireError::UnknownMode(String::new()));
+        assert_eq!(e.kind(), "unknown_mode");
+        // An effort command without efforts.
+        let empty = JointCommand {
+            mode: MODE_EFFORT.into(),
+            ..unnamed.clone()
+        };
+        assert!(matches!(
+            hand_command(&empty),
+            Err(WireError::Length {
+                field: "effort",
+                ..
+            })
+        ));
+        // An impedance with a negative damping, a zero effort limit, a NaN stiffness.
+        let z = impedance();
+        let mut msg = hand_command_msg(&HandCommand::Impedance(z), 0.0);
+        msg.damping[4] = -0.1;
+        assert_eq!(
+            hand_command(&msg),
+            Err(WireError::OutOfRange {
+                joint: SHADOW_FINGER_JOINTS[4].to_owned(),
+                field: "damping"
+            })
+        );
+        let mut msg = hand_command_msg(&HandCommand::Impedance(z), 0.0);
+        msg.max_effort[0] = 0.0;
+        assert_eq!(hand_command(&msg).unwrap_err().kind(), "out_of_range");
+        let mut msg = hand_command_msg(&HandCommand::Impedance(z), 0.0);
+        msg.stiffness[16] = f64::NAN;
+        assert_eq!(
+            hand_command(&msg),
+            Err(WireError::NonFinite {
+                joint: SHADOW_FINGER_JOINTS[16].to_owned(),
+                field: "stiffness"
+            })
+        );
         // A UR5 message is not a PR2 command.
         let ur5 = arm_command_msg(&UR5_JOINTS, &ArmCommand::<6>::stop(), 0.0);
         assert!(arm_command(&PR2_ARM_JOINTS, &ur5).is_err());

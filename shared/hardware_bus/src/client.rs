@@ -7,7 +7,9 @@ use teleop_hardware::{
     HardwareError, OperatorPanel, PedalState, WristTracker, wire,
 };
 use teleop_interfaces::{ArmInterface, HandInterface, Topic, topics};
-use teleop_msgs::{FingertipPressures, Image, JointState, OperatorInput, PoseStamped, Time};
+use teleop_msgs::{
+    FingertipPressures, Image, JointCommand, JointState, OperatorInput, PoseStamped, Time,
+};
 
 /// The newest valid state of a subscription, with its receive time.
 fn freshest<S: Copy>(
@@ -117,7 +119,7 @@ pub struct BusHand {
     state: Subscriber<JointState>,
     tactile: Subscriber<FingertipPressures>,
     /// `None` for a read-only handle.
-    command: Option<Publisher<JointState>>,
+    command: Option<Publisher<JointCommand>>,
     latest: Option<(HandState, f64)>,
     latest_tactile: Option<FingertipPressures>,
     stale_after_s: f64,

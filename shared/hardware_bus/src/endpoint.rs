@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use teleop_bus::{Bus, BusError, Publisher, Subscriber};
 use teleop_hardware::{ArmCommand, ArmState, HandCommand, HandState, wire};
 use teleop_interfaces::{ArmInterface, HandInterface};
-use teleop_msgs::{FingertipPressures, JointState};
+use teleop_msgs::{FingertipPressures, JointCommand, JointState};
 
 /// Commands refused after they passed the source check, by reason, and the last
 /// error text.
@@ -110,7 +110,7 @@ impl<const N: usize> ArmEndpoint<N> {
 #[derive(Debug)]
 pub struct HandEndpoint {
     name: &'static str,
-    commands: Subscriber<JointState>,
+    commands: Subscriber<JointCommand>,
     state: Publisher<JointState>,
     tactile: Publisher<FingertipPressures>,
     refused: Refusals,
@@ -177,7 +177,7 @@ impl HandEndpoint {
     }
 
     /// The command subscription.
-    pub fn command_subscriber(&self) -> &Subscriber<JointState> {
+    pub fn command_subscriber(&self) -> &Subscriber<JointCommand> {
         &self.commands
     }
 }

@@ -3,7 +3,7 @@
 //! hardware (a driver, or a simulator standing in for it) serves these; the site's
 //! controllers use them through `teleop-hardware-bus`.
 
-use teleop_msgs::{FingertipPressures, JointState};
+use teleop_msgs::{FingertipPressures, JointCommand, JointState};
 
 use crate::joints::{PR2_ARM_JOINTS, SHADOW_FINGER_JOINTS, UR5_JOINTS};
 use crate::topics::{self, Topic};
@@ -35,8 +35,8 @@ pub struct HandInterface {
     pub state: Topic<JointState>,
     /// Fingertip forces.
     pub tactile: Topic<FingertipPressures>,
-    /// Effort (N m) or position (rad) commands.
-    pub command: Topic<JointState>,
+    /// Effort, position or joint-impedance commands (`teleop_msgs/msg/JointCommand`).
+    pub command: Topic<JointCommand>,
     /// The only node whose commands the hardware accepts (by default).
     pub controller_node: &'static str,
 }

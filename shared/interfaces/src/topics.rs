@@ -6,7 +6,8 @@
 use std::marker::PhantomData;
 
 use teleop_msgs::{
-    FingertipPressures, Image, JointState, Message, NodeStatus, OperatorInput, PoseStamped,
+    FingertipPressures, Image, JointCommand, JointState, Message, NodeStatus, OperatorInput,
+    PoseStamped,
 };
 
 /// Which way a topic crosses (or does not cross) between the two sites.
@@ -394,14 +395,14 @@ pub const HW_HAND_TACTILE: Topic<FingertipPressures> = Topic::new(
     "Hand hardware fingertip sensors (N)",
 );
 /// Hand hardware command.
-pub const HW_HAND_COMMAND: Topic<JointState> = Topic::new(
+pub const HW_HAND_COMMAND: Topic<JointCommand> = Topic::new(
     "teleop/hw/shadow_hand/command",
     RemoteInternal,
     500.0,
     Q::Control,
     Some(100),
     Publishers::Nodes(&["shadow_hand_controller"]),
-    "Hand hardware command: 17 finger joints, either `effort` (N m) or `position` (rad)",
+    "Hand hardware command: 17 finger joints, `effort` (N m), `position` (rad) or a joint `impedance` the hand's own loop evaluates",
 );
 
 /// UR5 hardware: measured joint state, published by the process that owns the camera
@@ -584,14 +585,14 @@ mod tests {
         // A hardware command topic is published by the interface's one controller.
         use crate::hardware::{PR2_ARM, SHADOW_HAND, UR5_ARM};
         for (command, controller) in [
-            (PR2_ARM.command, PR2_ARM.controller_node),
-            (UR5_ARM.command, UR5_ARM.controller_node),
-            (SHADOW_HAND.command, SHADOW_HAND.controller_node),
+            (PR2_ARM.command.spec, PR2_ARM.controller_node),
+            (UR5_ARM.command.spec, UR5_ARM.controller_node),
+            (SHADOW_HAND.command.spec, SHADOW_HAND.controller_node),
         ] {
-            let Publishers::Nodes(names) = command.spec.publishers else {
-                panic!("{}: every node publishes it", command.spec.name);
+            let Publishers::Nodes(names) = command.publishers else {
+                panic!("{}: every node publishes it", command.name);
             };
-            assert_eq!(names, [controller], "{}", command.spec.name);
+            assert_eq!(names, [controller], "{}", command.name);
         }
         assert!(WRIST_POSE.spec.publishers.includes("wrist_tracker"));
         assert!(!WRIST_POSE.spec.publishers.includes("hand_inference"));

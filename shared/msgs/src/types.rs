@@ -453,6 +453,39 @@ impl FingertipPressures {
     }
 }
 
+/// `teleop_msgs/msg/JointCommand`: a joint-level command for a robot's own real-time
+/// loop (effort, position, or impedance evaluated by the hardware), by joint name; see
+/// `msg/JointCommand.msg`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct JointCommand {
+    pub header: Header,
+    /// `"effort"`, `"position"` or `"impedance"`.
+    pub mode: String,
+    pub name: Vec<String>,
+    pub position: Vec<f64>,
+    pub velocity: Vec<f64>,
+    pub effort: Vec<f64>,
+    pub stiffness: Vec<f64>,
+    pub damping: Vec<f64>,
+    pub max_effort: Vec<f64>,
+}
+message!(
+    JointCommand,
+    "teleop_msgs/msg/JointCommand",
+    "RIHS01_08a9321af0698f45d76f0081ed713276db4c5566cbe79d04059b25536e1004d7",
+    [
+        F::new("header", B::Nested(Header::description)),
+        F::new("mode", B::String),
+        F::seq("name", B::String),
+        F::seq("position", B::Float64),
+        F::seq("velocity", B::Float64),
+        F::seq("effort", B::Float64),
+        F::seq("stiffness", B::Float64),
+        F::seq("damping", B::Float64),
+        F::seq("max_effort", B::Float64)
+    ]
+);
+
 /// Lifecycle states of a node, as published in [`NodeStatus::lifecycle_state`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[repr(u8)]
@@ -552,5 +585,6 @@ pub fn all_descriptions() -> Vec<(&'static MsgDescription, &'static str)> {
             FingertipPressures::TYPE_HASH,
         ),
         (NodeStatus::description(), NodeStatus::TYPE_HASH),
+        (JointCommand::description(), JointCommand::TYPE_HASH),
     ]
 }

@@ -2,14 +2,15 @@
 #![allow(clippy::unwrap_used)]
 
 use teleop_msgs::{
-    FingertipPressures, Header, Image, JointState, Message, NodeStatus, OperatorInput, Point, Pose,
-    PoseStamped, Quaternion, Time, Transform, TransformStamped, Vector3,
+    FingertipPressures, Header, Image, JointCommand, JointState, Message, NodeStatus,
+    OperatorInput, Point, Pose, PoseStamped, Quaternion, Time, Transform, TransformStamped,
+    Vector3,
 };
 
 #[test]
 fn computed_hash_equals_declared_hash_for_every_type() {
     let all = teleop_msgs::all_descriptions();
-    assert_eq!(all.len(), 14);
+    assert_eq!(all.len(), 15);
     let mut mismatches = Vec::new();
     for (desc, declared) in &all {
         let computed = desc.type_hash();
@@ -45,6 +46,7 @@ fn all_descriptions_lists_every_type_once() {
         OperatorInput::TYPE_NAME,
         FingertipPressures::TYPE_NAME,
         NodeStatus::TYPE_NAME,
+        JointCommand::TYPE_NAME,
     ];
     expected.sort_unstable();
     assert_eq!(names, expected);
@@ -97,6 +99,9 @@ fn teleop_hashes_are_stable() {
     );
     assert_hash::<NodeStatus>(
         "RIHS01_e9ab36cd53de9b842bd28237da566c14b35f9e93152d050477c46abdee6fd004",
+    );
+    assert_hash::<JointCommand>(
+        "RIHS01_08a9321af0698f45d76f0081ed713276db4c5566cbe79d04059b25536e1004d7",
     );
 }
 

@@ -17,8 +17,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use teleop_msgs::{
-    FingertipPressures, Header, Image, JointState, Message, NodeStatus, OperatorInput, Point, Pose,
-    PoseStamped, Quaternion, Time, Transform, TransformStamped, Vector3, decode, encode, encodings,
+    FingertipPressures, Header, Image, JointCommand, JointState, Message, NodeStatus,
+    OperatorInput, Point, Pose, PoseStamped, Quaternion, Time, Transform, TransformStamped,
+    Vector3, decode, encode, encodings,
 };
 
 type Check = Box<dyn Fn(&str, &[u8], &[u8], &[u8]) -> Result<(), String>>;
@@ -230,6 +231,29 @@ fn cases() -> Vec<Case> {
             },
         ),
         case("node_status_empty", NodeStatus::default()),
+        case(
+            "joint_command_impedance",
+            JointCommand {
+                header: Header::default(),
+                mode: "impedance".into(),
+                name: names[..3].to_vec(),
+                position: vec![0.25, -0.5, 1.0],
+                velocity: vec![0.0, 0.125, -2.0],
+                effort: vec![0.01, 0.0, -0.2],
+                stiffness: vec![20.0, 1.0, 0.5],
+                damping: vec![0.2, 0.05, 0.0],
+                max_effort: vec![2.0, 2.0, 5.0],
+            },
+        ),
+        case(
+            "joint_command_effort",
+            JointCommand {
+                mode: "effort".into(),
+                name: names[..2].to_vec(),
+                effort: vec![1.5, -2.0],
+                ..JointCommand::default()
+            },
+        ),
     ]
 }
 

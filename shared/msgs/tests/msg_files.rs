@@ -5,7 +5,9 @@
 
 use std::path::{Path, PathBuf};
 
-use teleop_msgs::{FingertipPressures, Lifecycle, Message, NodeStatus, OperatorInput};
+use teleop_msgs::{
+    FingertipPressures, JointCommand, Lifecycle, Message, NodeStatus, OperatorInput,
+};
 
 fn msg_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("msg")
@@ -122,8 +124,18 @@ fn node_status_msg_matches_struct() {
 }
 
 #[test]
+fn joint_command_msg_matches_struct() {
+    check_type::<JointCommand>();
+}
+
+#[test]
 fn header_is_written_as_std_msgs_header() {
-    for name in ["OperatorInput", "FingertipPressures", "NodeStatus"] {
+    for name in [
+        "OperatorInput",
+        "FingertipPressures",
+        "NodeStatus",
+        "JointCommand",
+    ] {
         let text = read_msg(name);
         let fields = parse_msg(&text);
         assert_eq!(
@@ -154,6 +166,7 @@ fn every_msg_file_is_a_known_type() {
         names,
         [
             "FingertipPressures.msg",
+            "JointCommand.msg",
             "NodeStatus.msg",
             "OperatorInput.msg"
         ]
@@ -200,7 +213,12 @@ fn defaults_in_msg_files_match_rust_defaults() {
     });
     assert_eq!(default, Some(OperatorInput::default().motion_scale));
     // No other field in the project's files has a default value.
-    for file in ["OperatorInput", "FingertipPressures", "NodeStatus"] {
+    for file in [
+        "OperatorInput",
+        "FingertipPressures",
+        "NodeStatus",
+        "JointCommand",
+    ] {
         let with_default: Vec<String> = parse_msg(&read_msg(file))
             .into_iter()
             .filter_map(|l| match l {
@@ -237,7 +255,12 @@ fn ros2_package_builds_every_msg_file() {
     let package = std::fs::read_to_string(ros2.join("package.xml")).unwrap();
     assert!(cmake.contains("project(teleop_msgs)"));
     assert!(cmake.contains("DEPENDENCIES std_msgs"));
-    for name in ["OperatorInput", "FingertipPressures", "NodeStatus"] {
+    for name in [
+        "OperatorInput",
+        "FingertipPressures",
+        "NodeStatus",
+        "JointCommand",
+    ] {
         assert!(
             cmake.contains(&format!("\"${{TELEOP_MSGS_ROOT}}:msg/{name}.msg\"")),
             "CMakeLists.txt does not generate {name}"

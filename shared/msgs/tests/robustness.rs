@@ -12,9 +12,9 @@ use common::*;
 use proptest::collection::vec;
 use proptest::prelude::*;
 use teleop_msgs::{
-    CodecError, FingertipPressures, Header, Image, JointState, Message, NodeStatus, OperatorInput,
-    Point, Pose, PoseStamped, Quaternion, Time, Transform, TransformStamped, Vector3, WireError,
-    decode, encode,
+    CodecError, FingertipPressures, Header, Image, JointCommand, JointState, Message, NodeStatus,
+    OperatorInput, Point, Pose, PoseStamped, Quaternion, Time, Transform, TransformStamped,
+    Vector3, WireError, decode, encode,
 };
 
 /// Decodes `bytes` as `T` and checks the outcome is consistent:
@@ -61,6 +61,7 @@ fn decode_as_every_type(bytes: &[u8]) -> Result<(), TestCaseError> {
     decode_consistent::<OperatorInput>(bytes)?;
     decode_consistent::<FingertipPressures>(bytes)?;
     decode_consistent::<NodeStatus>(bytes)?;
+    decode_consistent::<JointCommand>(bytes)?;
     Ok(())
 }
 
@@ -177,6 +178,21 @@ fn valid_samples() -> Vec<(&'static str, Vec<u8>)> {
             })
             .unwrap(),
         ),
+        (
+            JointCommand::TYPE_NAME,
+            encode(&JointCommand {
+                header: Header::default(),
+                mode: "impedance".into(),
+                name: vec!["rh_FFJ3".into()],
+                position: vec![0.5],
+                velocity: vec![0.0],
+                effort: vec![0.1],
+                stiffness: vec![20.0],
+                damping: vec![0.2],
+                max_effort: vec![2.0],
+            })
+            .unwrap(),
+        ),
     ]
 }
 
@@ -200,6 +216,7 @@ fn decode_named(name: &str, bytes: &[u8]) -> Result<(), CodecError> {
         OperatorInput::TYPE_NAME => d::<OperatorInput>(bytes),
         FingertipPressures::TYPE_NAME => d::<FingertipPressures>(bytes),
         NodeStatus::TYPE_NAME => d::<NodeStatus>(bytes),
+        JointCommand::TYPE_NAME => d::<JointCommand>(bytes),
         other => panic!("unknown type {other}"),
     }
 }

@@ -73,10 +73,7 @@ impl HandHardware for SimHand {
     /// Stores the command; a non-finite command is refused and leaves the previous one
     /// in force.
     fn write(&mut self, _now_s: f64, command: &HandCommand) -> Result<(), HardwareError> {
-        let values = match command {
-            HandCommand::Effort(v) | HandCommand::Position(v) => v,
-        };
-        if !values.iter().all(|v| v.is_finite()) {
+        if !command.is_finite() {
             return Err(HardwareError::Fault("non-finite hand command".to_owned()));
         }
         lock(&self.world)?.command_hand(command);

@@ -583,6 +583,28 @@ impl World {
                     raw.signum() * max
                 }
             }),
+            // The hardware's own loop evaluates the impedance at every substep with the
+            // newest state; its stiff terms are integrated implicitly while unsaturated.
+            HandCommand::Impedance(z) => SVector::from_fn(|i, _| {
+                let set = z.position_rad[i].clamp(self.hand_lower[i], self.hand_upper[i]);
+                let (k, c) = (
+                    z.stiffness_nm_rad[i].max(0.0),
+                    z.damping_nm_s_rad[i].max(0.0),
+                );
+                // The motor's torque constant errs as with effort commands.
+                let raw = gain[i]
+                    * (z.feedforward_nm[i] + k * (set - q[i]) + c * (z.velocity_rad_s[i] - v[i]));
+                let limit = z.max_effort_nm[i].abs().min(max);
+                if !raw.is_finite() {
+                    0.0
+                } else if raw.abs() < limit {
+                    stiff[i] += gain[i] * k;
+                    damp[i] += gain[i] * c;
+                    raw
+                } else {
+                    raw.signum() * limit
+                }
+            }),
         };
         self.hand_effort = effort;
         force += effort;

@@ -2,7 +2,7 @@
 #![allow(clippy::unwrap_used)]
 
 use nalgebra::SVector;
-use teleop_hardware::{HandCommand, HandHardware};
+use teleop_hardware::{HandCommand, HandHardware, HandImpedance};
 use teleop_interfaces::joints::SHADOW_FINGER_JOINTS as FINGER_JOINTS;
 use teleop_sim::{TouchingTaskConfig, World, WorldConfig};
 
@@ -114,6 +114,61 @@ fn position_servo_reaches_target_in_free_space() {
         hand.write(0.0, &HandCommand::Effort(SVector::repeat(f64::INFINITY)))
             .is_err()
     );
+}
+
+/// A stiff joint impedance held over a long command period (as a controller across a
+/// bus sends it): the hand's own loop evaluates it every substep, so the finger settles
+/// on the set point without oscillating, and its effort respects the command's cap.
+#[test]
+fn joint_impedance_is_evaluated_in_the_hands_own_loop() {
+    let config = WorldConfig {
+        gravity_m_s2: [0.0; 3],
+        ..WorldConfig::nominal()
+    };
+    let mut w = World::new(config).unwrap();
+    let j = idx("rh_FFJ3");
+    let mut z = HandImpedance {
+        position_rad: SVector::zeros(),
+        velocity_rad_s: SVector::zeros(),
+        stiffness_nm_rad: SVector::repeat(20.0),
+        damping_nm_s_rad: SVector::repeat(0.2),
+        feedforward_nm: SVector::zeros(),
+        max_effort_nm: SVector::repeat(2.0),
+    };
+    z.position_rad[j] = 0.8;
+    w.command_hand(&HandCommand::Impedance(z));
+    // Sampled every 4 ms, as the bus sees it; the command never changes.
+    let mut peak_effort: f64 = 0.0;
+    let mut late_speed: f64 = 0.0;
+    for k in 0..250 {
+        w.step(0.004);
+        let s = w.hand_state();
+        peak_effort = peak_effort.max(s.effort_nm.amax());
+        if k >= 200 {
+            late_speed = late_speed.max(s.velocity_rad_s.amax());
+        }
+    }
+    let s = w.hand_state();
+    assert!(
+        (s.position_rad[j] - 0.8).abs() < 0.01,
+        "FFJ3 at {}",
+        s.position_rad[j]
+    );
+    assert!(
+        late_speed < 1e-2,
+        "still moving after 0.8 s: {late_speed} rad/s"
+    );
+    assert!(
+        peak_effort <= 2.0 + 1e-9,
+        "effort above the cap: {peak_effort}"
+    );
+    // A lower cap binds: 0.3 N m cannot hold the finger far from a 20 N m/rad set point
+    // against nothing, but it limits the push.
+    z.max_effort_nm = SVector::repeat(0.3);
+    z.position_rad[j] = 0.0;
+    w.command_hand(&HandCommand::Impedance(z));
+    w.step(0.002);
+    assert!(w.hand_state().effort_nm.amax() <= 0.3 + 1e-9);
 }
 
 /// Zero effort for 10 s in the touching scene: the fingers fall onto the mouse and

@@ -295,6 +295,20 @@ impl<const N: usize> AdaptiveImpedance<N> {
         tau
     }
 
+    /// The law of the current profiles as a joint impedance about the target,
+    /// `τ = G + f + K (q_d - q) + D (q̇_d - q̇)`: returns `(K, D, f)` with
+    /// `K = K_s + Γ ζ`, `D = K_d + Γ`, `f = -v` (eqs. 8.1-8.3 regrouped; without the
+    /// error saturation of the effort form).
+    pub fn impedance(&self) -> (SVector<f64, N>, SVector<f64, N>, SVector<f64, N>) {
+        let c = &self.gains;
+        let p = &self.profiles;
+        (
+            p.stiffness_nm_rad + c.gamma.component_mul(&c.zeta),
+            p.damping_nm_s_rad + c.gamma,
+            -p.feedforward_nm,
+        )
+    }
+
     /// The effort of the current profiles without adapting them or advancing the
     /// phase, clamped to `±limit_nm` (the hold behaviour: a stale target must not
     /// train the profiles). Updates [`profiles`](Self::profiles). The input must be

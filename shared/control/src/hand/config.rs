@@ -151,6 +151,23 @@ pub enum PositionServo {
     Hardware,
 }
 
+/// How the effort-computing laws reach the hardware.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HardwareInterface {
+    /// The law's efforts ([`HandOutput::Effort`](super::HandOutput)): the loop closes
+    /// through the caller, so it must run fast and close to the hardware (the
+    /// in-process simulations at 1 kHz). Default.
+    #[default]
+    Effort,
+    /// The law as a joint impedance the hardware evaluates in its own loop
+    /// ([`HandOutput::Impedance`](super::HandOutput)): stiffness, damping, set point and
+    /// feed-forward, updated every period, the stiff part never waiting for the caller.
+    /// For a controller that reaches the hand over a network (the
+    /// `shadow_hand_controller` node).
+    Impedance,
+}
+
 /// Gains of the PD position servo (our values; the thesis gives none).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -71,6 +71,12 @@ impl<const N: usize> FixedImpedance<N> {
         clamp_effort(&tau, limit_nm)
     }
 
+    /// The law as a joint impedance, `τ = G + f + K (q_d - q) + D (q̇_d - q̇)`:
+    /// `(K, D, f)` = (`K_s`, `K_d`, `τ0`).
+    pub fn impedance(&self) -> (SVector<f64, N>, SVector<f64, N>, SVector<f64, N>) {
+        (self.stiffness_nm_rad, self.damping_nm_s_rad, self.bias_nm)
+    }
+
     /// Effort limits, N m.
     pub fn max_effort_nm(&self) -> &SVector<f64, N> {
         &self.max_effort_nm

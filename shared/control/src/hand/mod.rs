@@ -42,8 +42,8 @@ pub mod position;
 pub use adaptive::{AdaptiveImpedance, CompliantProfiles};
 pub use basis::GaussianBasis;
 pub use config::{
-    AdaptiveConfig, BasisConfig, FixedImpedanceConfig, HandControllerConfig, HandMode, PerJoint,
-    PositionConfig, PositionServo, SHADOW_FINGER_MAX_EFFORT_NM,
+    AdaptiveConfig, BasisConfig, FixedImpedanceConfig, HandControllerConfig, HandMode,
+    HardwareInterface, PerJoint, PositionConfig, PositionServo, SHADOW_FINGER_MAX_EFFORT_NM,
 };
 pub use fixed::FixedImpedance;
 pub use input::JointInput;
@@ -63,12 +63,72 @@ pub type ShadowHandController = HandController<SHADOW_FINGER_JOINT_COUNT>;
 
 /// A command for the hand.
 #[derive(Debug, Clone, Copy, PartialEq)]
+// Copied every control period without allocating: the impedance stays inline.
+#[allow(clippy::large_enum_variant)]
 pub enum HandOutput<const N: usize> {
     /// Joint efforts, N m, within the effort limits.
     Effort(SVector<f64, N>),
     /// Joint position targets for the hardware's own servo, rad
     /// ([`PositionServo::Hardware`]).
     Position(SVector<f64, N>),
+    /// The law as a joint impedance for the hardware's own loop
+    /// ([`HardwareInterface::Impedance`]).
+    Impedance(JointImpedance<N>),
+}
+
+/// A joint impedance for the hardware's own loop: there, every period, with its newest
+/// measurement, `τ = feedforward + stiffness (position - q) + damping (velocity - q̇)`,
+/// clamped to `±max_effort`. Gravity is in the feed-forward.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JointImpedance<const N: usize> {
+    /// Set point (the target), rad.
+    pub position_rad: SVector<f64, N>,
+    /// Set point velocity (the target's), rad/s.
+    pub velocity_rad_s: SVector<f64, N>,
+    /// N m/rad.
+    pub stiffness_nm_rad: SVector<f64, N>,
+    /// N m s/rad.
+    pub damping_nm_s_rad: SVector<f64, N>,
+    /// N m.
+    pub feedforward_nm: SVector<f64, N>,
+    /// N m.
+    pub max_effort_nm: SVector<f64, N>,
+}
+
+impl<const N: usize> JointImpedance<N> {
+    /// The clamped effort at `q`, `q̇`, N m (what the hardware applies); a joint whose
+    /// law or limit is not finite gets 0.
+    pub fn effort_at(
+        &self,
+        position_rad: &SVector<f64, N>,
+        velocity_rad_s: &SVector<f64, N>,
+    ) -> SVector<f64, N> {
+        SVector::from_fn(|i, _| {
+            let tau = self.feedforward_nm[i]
+                + self.stiffness_nm_rad[i] * (self.position_rad[i] - position_rad[i])
+                + self.damping_nm_s_rad[i] * (self.velocity_rad_s[i] - velocity_rad_s[i]);
+            let max = self.max_effort_nm[i].abs();
+            if tau.is_finite() && max.is_finite() {
+                tau.clamp(-max, max)
+            } else {
+                0.0
+            }
+        })
+    }
+
+    /// True when every value of every field is finite.
+    pub fn is_finite(&self) -> bool {
+        [
+            &self.position_rad,
+            &self.velocity_rad_s,
+            &self.stiffness_nm_rad,
+            &self.damping_nm_s_rad,
+            &self.feedforward_nm,
+            &self.max_effort_nm,
+        ]
+        .iter()
+        .all(|v| v.iter().all(|x| x.is_finite()))
+    }
 }
 
 impl<const N: usize> HandOutput<N> {
@@ -76,15 +136,23 @@ impl<const N: usize> HandOutput<N> {
     pub fn effort_nm(&self) -> Option<&SVector<f64, N>> {
         match self {
             HandOutput::Effort(t) => Some(t),
-            HandOutput::Position(_) => None,
+            _ => None,
         }
     }
 
     /// The positions, if this is a position command.
     pub fn position_rad(&self) -> Option<&SVector<f64, N>> {
         match self {
-            HandOutput::Effort(_) => None,
             HandOutput::Position(q) => Some(q),
+            _ => None,
+        }
+    }
+
+    /// The impedance, if this is an impedance command.
+    pub fn impedance(&self) -> Option<&JointImpedance<N>> {
+        match self {
+            HandOutput::Impedance(z) => Some(z),
+            _ => None,
         }
     }
 }
@@ -95,6 +163,7 @@ impl<const N: usize> HandOutput<N> {
 pub struct HandController<const N: usize> {
     config: HandControllerConfig<N>,
     mode: HandMode,
+    interface: HardwareInterface,
     max_effort_nm: SVector<f64, N>,
     hold_max_effort_nm: SVector<f64, N>,
     position: PdServo<N>,
@@ -119,6 +188,7 @@ impl<const N: usize> HandController<N> {
         Ok(Self {
             config,
             mode: config.mode,
+            interface: HardwareInterface::default(),
             max_effort_nm,
             hold_max_effort_nm: config.hold_max_effort_nm.to_vector(),
             position: PdServo::new(&config.position, max_effort_nm)?,
@@ -129,6 +199,19 @@ impl<const N: usize> HandController<N> {
             holding: false,
             rejections: RejectionCounts::default(),
         })
+    }
+
+    /// The same controller sending its law in the form `interface` (efforts by
+    /// default).
+    #[must_use]
+    pub fn with_interface(mut self, interface: HardwareInterface) -> Self {
+        self.interface = interface;
+        self
+    }
+
+    /// The form the laws' outputs take.
+    pub fn interface(&self) -> HardwareInterface {
+        self.interface
     }
 
     /// One control period with measured positions `q` (rad) and velocities `q̇`
@@ -164,24 +247,55 @@ impl<const N: usize> HandController<N> {
         input: &JointInput<N>,
     ) -> Result<HandOutput<N>, Rejection> {
         self.checked(dt_s, input)?;
-        let output = match self.mode {
+        let effort = match self.mode {
             HandMode::Position => match self.config.position.servo {
-                PositionServo::Effort => {
-                    HandOutput::Effort(self.position.effort(input, &self.max_effort_nm))
+                PositionServo::Effort => self.position.effort(input, &self.max_effort_nm),
+                PositionServo::Hardware => {
+                    return Ok(self.accepted(input, HandOutput::Position(input.target_rad)));
                 }
-                PositionServo::Hardware => HandOutput::Position(input.target_rad),
             },
-            HandMode::FixedImpedance => {
-                HandOutput::Effort(self.fixed.effort(input, &self.max_effort_nm))
-            }
-            HandMode::Adaptive => {
-                HandOutput::Effort(self.adaptive.step_checked(dt_s, input, &self.max_effort_nm))
+            HandMode::FixedImpedance => self.fixed.effort(input, &self.max_effort_nm),
+            // Adapts the profiles (either interface).
+            HandMode::Adaptive => self.adaptive.step_checked(dt_s, input, &self.max_effort_nm),
+        };
+        let output = match self.interface {
+            HardwareInterface::Effort => HandOutput::Effort(effort),
+            HardwareInterface::Impedance => {
+                HandOutput::Impedance(self.impedance(input, 1.0, &self.max_effort_nm))
             }
         };
+        Ok(self.accepted(input, output))
+    }
+
+    /// The current law as a joint impedance about `input`'s target, its gains and
+    /// feed-forward scaled by `scale`, clamped at `limit_nm`.
+    fn impedance(
+        &self,
+        input: &JointInput<N>,
+        scale: f64,
+        limit_nm: &SVector<f64, N>,
+    ) -> JointImpedance<N> {
+        let (k, d, f) = match self.mode {
+            HandMode::Position => self.position.impedance(),
+            HandMode::FixedImpedance => self.fixed.impedance(),
+            HandMode::Adaptive => self.adaptive.impedance(),
+        };
+        JointImpedance {
+            position_rad: input.target_rad,
+            velocity_rad_s: input.target_velocity_rad_s,
+            stiffness_nm_rad: k * scale,
+            damping_nm_s_rad: d * scale,
+            feedforward_nm: (f + input.gravity_nm) * scale,
+            max_effort_nm: *limit_nm,
+        }
+    }
+
+    /// Records an accepted step's output.
+    fn accepted(&mut self, input: &JointInput<N>, output: HandOutput<N>) -> HandOutput<N> {
         self.hold_target_rad = Some(input.target_rad);
         self.holding = false;
         self.last_output = output;
-        Ok(output)
+        output
     }
 
     /// One period of the hold behaviour (stale commands): keep the last accepted
@@ -229,18 +343,25 @@ impl<const N: usize> HandController<N> {
             tau * scale
         };
         let hold = self.hold_max_effort_nm;
-        let output = match self.mode {
+        let effort = match self.mode {
             HandMode::Position => match self.config.position.servo {
-                PositionServo::Effort => {
-                    HandOutput::Effort(scaled(self.position.effort(&input, limit), &hold))
-                }
-                PositionServo::Hardware => HandOutput::Position(target),
+                PositionServo::Effort => self.position.effort(&input, limit),
+                PositionServo::Hardware => SVector::zeros(),
             },
-            HandMode::FixedImpedance => {
-                HandOutput::Effort(scaled(self.fixed.effort(&input, limit), &hold))
-            }
-            HandMode::Adaptive => {
-                HandOutput::Effort(scaled(self.adaptive.effort_frozen(&input, limit), &hold))
+            HandMode::FixedImpedance => self.fixed.effort(&input, limit),
+            HandMode::Adaptive => self.adaptive.effort_frozen(&input, limit),
+        };
+        let output = match (self.mode, self.config.position.servo, self.interface) {
+            (HandMode::Position, PositionServo::Hardware, _) => HandOutput::Position(target),
+            (_, _, HardwareInterface::Effort) => HandOutput::Effort(scaled(effort, &hold)),
+            // The same scale on the whole impedance, from the effort now; the hardware
+            // clamps each joint at its hold limit as the posture changes.
+            (_, _, HardwareInterface::Impedance) => {
+                let s = (0..N)
+                    .filter(|&i| effort[i].abs() > hold[i])
+                    .map(|i| hold[i] / effort[i].abs())
+                    .fold(1.0, f64::min);
+                HandOutput::Impedance(self.impedance(&input, s, &hold))
             }
         };
         self.hold_target_rad = Some(target);

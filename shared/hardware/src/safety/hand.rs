@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 
 use super::{Intervention, SafetyConfigError, SafetyCounters, check, step_dt};
-use crate::{FINGER_JOINTS, HandCommand, HandHardware, HandState, HardwareError};
+use crate::{FINGER_JOINTS, HandCommand, HandHardware, HandImpedance, HandState, HardwareError};
 
 type Joints = SVector<f64, FINGER_JOINTS>;
 
@@ -30,6 +30,11 @@ pub struct HandSafetyConfig {
     pub target_speed_fraction: f64,
     /// Longest time step the filter assumes, s. Default 0.05.
     pub max_dt_s: f64,
+    /// Cap on a joint impedance's stiffness, N m/rad. Default 20 (the controllers'
+    /// stiffest gain: the effort cap at 0.1 rad of error).
+    pub max_stiffness_nm_rad: f64,
+    /// Cap on a joint impedance's damping, N m s/rad. Default 0.5.
+    pub max_damping_nm_s_rad: f64,
 }
 
 impl Default for HandSafetyConfig {
@@ -40,6 +45,8 @@ impl Default for HandSafetyConfig {
             velocity_fraction: 1.5,
             target_speed_fraction: 1.0,
             max_dt_s: 0.05,
+            max_stiffness_nm_rad: 20.0,
+            max_damping_nm_s_rad: 0.5,
         }
     }
 }
@@ -57,7 +64,9 @@ impl HandSafetyConfig {
             0.01,
             10.0,
         )?;
-        check("max_dt_s", self.max_dt_s, 1e-4, 1.0)
+        check("max_dt_s", self.max_dt_s, 1e-4, 1.0)?;
+        check("max_stiffness_nm_rad", self.max_stiffness_nm_rad, 0.0, 1e3)?;
+        check("max_damping_nm_s_rad", self.max_damping_nm_s_rad, 0.0, 10.0)
     }
 }
 
@@ -155,6 +164,11 @@ impl HandSafety {
     ///   limit gets no effort in its direction of motion.
     /// * **Position**: targets clamped into the limits and moved toward the command at
     ///   most `target_speed_fraction ·` the speed limit.
+    /// * **Impedance**: the set point as a position target; its velocity within
+    ///   `±target_speed_fraction ·` the speed limit; stiffness and damping capped at
+    ///   `max_stiffness_nm_rad` / `max_damping_nm_s_rad`; the maximum effort at the
+    ///   effort cap (the hardware clamps the law's output to it); the feed-forward
+    ///   torque filtered as an effort command.
     /// * **Timeout** (no valid command for `command_timeout_s`) or no state: hold the
     ///   posture measured then (position command).
     pub fn step(
@@ -202,9 +216,52 @@ impl HandSafety {
             return Some(HandCommand::Position(hold));
         };
         Some(match command {
-            HandCommand::Effort(tau) => HandCommand::Effort(self.filter_effort(&tau, state)),
+            HandCommand::Effort(tau) => {
+                // Efforts alone: the next position target starts from the measurement.
+                self.last_target = None;
+                HandCommand::Effort(self.filter_effort(&tau, state))
+            }
             HandCommand::Position(q) => HandCommand::Position(self.filter_target(&q, state, dt)),
+            HandCommand::Impedance(z) => {
+                HandCommand::Impedance(self.filter_impedance(&z, state, dt))
+            }
         })
+    }
+
+    fn filter_impedance(&mut self, z: &HandImpedance, state: &HandState, dt: f64) -> HandImpedance {
+        let feedforward_nm = self.filter_effort(&z.feedforward_nm, state);
+        let position_rad = self.filter_target(&z.position_rad, state, dt);
+        let cap = |v: &Joints, max: &Joints| v.zip_map(max, |x, m| x.clamp(0.0, m));
+        let speed = self.limits.velocity_rad_s * self.config.target_speed_fraction;
+        let velocity_rad_s = z.velocity_rad_s.zip_map(&speed, |x, m| x.clamp(-m, m));
+        if velocity_rad_s != z.velocity_rad_s {
+            self.counters.count(Intervention::Velocity);
+        }
+        let stiffness_nm_rad = cap(
+            &z.stiffness_nm_rad,
+            &Joints::repeat(self.config.max_stiffness_nm_rad),
+        );
+        let damping_nm_s_rad = cap(
+            &z.damping_nm_s_rad,
+            &Joints::repeat(self.config.max_damping_nm_s_rad),
+        );
+        if stiffness_nm_rad != z.stiffness_nm_rad || damping_nm_s_rad != z.damping_nm_s_rad {
+            self.counters.count(Intervention::Gain);
+        }
+        let max_effort_nm = z
+            .max_effort_nm
+            .zip_map(&self.effort_cap, |x, m| x.abs().min(m));
+        if max_effort_nm != z.max_effort_nm {
+            self.counters.count(Intervention::Effort);
+        }
+        HandImpedance {
+            position_rad,
+            velocity_rad_s,
+            stiffness_nm_rad,
+            damping_nm_s_rad,
+            feedforward_nm,
+            max_effort_nm,
+        }
     }
 
     fn filter_effort(&mut self, tau: &Joints, state: &HandState) -> Joints {
@@ -240,7 +297,6 @@ impl HandSafety {
                 self.counters.count(what);
             }
         }
-        self.last_target = None;
         out
     }
 
@@ -384,6 +440,63 @@ mod tests {
         assert_eq!(tau[4], 0.0);
         assert_eq!(tau[5], 0.5);
         assert!(s.counters().get(Intervention::Velocity) >= 1);
+    }
+
+    #[test]
+    fn impedances_are_capped_and_their_set_points_limited() {
+        let mut s = safety();
+        let q = mid();
+        let mut feedforward = Joints::repeat(0.1);
+        feedforward[3] = 7.0;
+        let z = HandImpedance {
+            position_rad: Joints::repeat(10.0),
+            velocity_rad_s: Joints::repeat(100.0),
+            stiffness_nm_rad: Joints::repeat(500.0),
+            damping_nm_s_rad: Joints::repeat(0.1),
+            feedforward_nm: feedforward,
+            max_effort_nm: Joints::repeat(9.0),
+        };
+        let out = s.step(
+            0.0,
+            Some(&HandCommand::Impedance(z)),
+            Some(&state(q, Joints::zeros())),
+        );
+        let Some(HandCommand::Impedance(f)) = out else {
+            panic!("{out:?}")
+        };
+        let limits = *s.limits();
+        for i in 0..FINGER_JOINTS {
+            assert!(f.position_rad[i] <= limits.upper_rad[i] + 1e-12);
+            // Rate-limited from the measured posture.
+            assert!(f.position_rad[i] - q[i] <= limits.velocity_rad_s[i] * 0.05 + 1e-9);
+            assert!(f.velocity_rad_s[i] <= limits.velocity_rad_s[i] + 1e-12);
+            assert_eq!(f.stiffness_nm_rad[i], 20.0);
+            assert_eq!(f.damping_nm_s_rad[i], 0.1);
+            assert_eq!(f.max_effort_nm[i], s.effort_cap_nm()[i]);
+        }
+        assert_eq!(f.feedforward_nm[3], 2.0);
+        assert_eq!(f.feedforward_nm[0], 0.1);
+        for what in [
+            Intervention::Gain,
+            Intervention::Effort,
+            Intervention::Velocity,
+            Intervention::PositionLimit,
+        ] {
+            assert!(s.counters().get(what) >= 1, "{what:?}");
+        }
+        // Whatever the posture, the hardware's law then stays within the cap.
+        let tau = f.effort_at(&(q - Joints::repeat(3.0)), &Joints::repeat(-50.0));
+        assert!(tau.amax() <= 2.0 + 1e-12);
+        // A NaN anywhere in an impedance is refused: the previous command stays.
+        let mut bad = z;
+        bad.damping_nm_s_rad[5] = f64::NAN;
+        let out = s.step(
+            DT,
+            Some(&HandCommand::Impedance(bad)),
+            Some(&state(q, Joints::zeros())),
+        );
+        assert!(matches!(out, Some(HandCommand::Impedance(_))));
+        assert_eq!(s.counters().get(Intervention::NonFinite), 1);
     }
 
     #[test]

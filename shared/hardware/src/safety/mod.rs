@@ -42,6 +42,8 @@ pub enum Intervention {
     Effort,
     /// No measured state to check the command against: the robot was stopped.
     NoState,
+    /// A joint impedance's stiffness or damping above its cap was lowered.
+    Gain,
 }
 
 impl Intervention {
@@ -56,6 +58,7 @@ impl Intervention {
             Intervention::ToolSpeed => "tool_speed",
             Intervention::Effort => "effort",
             Intervention::NoState => "no_state",
+            Intervention::Gain => "gain",
         }
     }
 }
