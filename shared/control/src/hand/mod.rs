@@ -335,13 +335,6 @@ impl<const N: usize> HandController<N> {
         // fingertip keeps pushing in the same direction, only less hard (clamping joint
         // by joint would turn the fingertip forces and let a grasp slide).
         let limit = &self.max_effort_nm;
-        let scaled = |tau: SVector<f64, N>, hold: &SVector<f64, N>| {
-            let scale = (0..N)
-                .filter(|&i| tau[i].abs() > hold[i])
-                .map(|i| hold[i] / tau[i].abs())
-                .fold(1.0, f64::min);
-            tau * scale
-        };
         let hold = self.hold_max_effort_nm;
         let effort = match self.mode {
             HandMode::Position => match self.config.position.servo {
@@ -351,17 +344,18 @@ impl<const N: usize> HandController<N> {
             HandMode::FixedImpedance => self.fixed.effort(&input, limit),
             HandMode::Adaptive => self.adaptive.effort_frozen(&input, limit),
         };
+        // The largest factor (<= 1) that brings every joint within its hold limit.
+        let scale = (0..N)
+            .filter(|&i| effort[i].abs() > hold[i])
+            .map(|i| hold[i] / effort[i].abs())
+            .fold(1.0, f64::min);
         let output = match (self.mode, self.config.position.servo, self.interface) {
             (HandMode::Position, PositionServo::Hardware, _) => HandOutput::Position(target),
-            (_, _, HardwareInterface::Effort) => HandOutput::Effort(scaled(effort, &hold)),
+            (_, _, HardwareInterface::Effort) => HandOutput::Effort(effort * scale),
             // The same scale on the whole impedance, from the effort now; the hardware
             // clamps each joint at its hold limit as the posture changes.
             (_, _, HardwareInterface::Impedance) => {
-                let s = (0..N)
-                    .filter(|&i| effort[i].abs() > hold[i])
-                    .map(|i| hold[i] / effort[i].abs())
-                    .fold(1.0, f64::min);
-                HandOutput::Impedance(self.impedance(&input, s, &hold))
+                HandOutput::Impedance(self.impedance(&input, scale, &hold))
             }
         };
         self.hold_target_rad = Some(target);

@@ -231,20 +231,17 @@ impl HandSafety {
     fn filter_impedance(&mut self, z: &HandImpedance, state: &HandState, dt: f64) -> HandImpedance {
         let feedforward_nm = self.filter_effort(&z.feedforward_nm, state);
         let position_rad = self.filter_target(&z.position_rad, state, dt);
-        let cap = |v: &Joints, max: &Joints| v.zip_map(max, |x, m| x.clamp(0.0, m));
         let speed = self.limits.velocity_rad_s * self.config.target_speed_fraction;
         let velocity_rad_s = z.velocity_rad_s.zip_map(&speed, |x, m| x.clamp(-m, m));
         if velocity_rad_s != z.velocity_rad_s {
             self.counters.count(Intervention::Velocity);
         }
-        let stiffness_nm_rad = cap(
-            &z.stiffness_nm_rad,
-            &Joints::repeat(self.config.max_stiffness_nm_rad),
+        let (k_max, d_max) = (
+            self.config.max_stiffness_nm_rad,
+            self.config.max_damping_nm_s_rad,
         );
-        let damping_nm_s_rad = cap(
-            &z.damping_nm_s_rad,
-            &Joints::repeat(self.config.max_damping_nm_s_rad),
-        );
+        let stiffness_nm_rad = z.stiffness_nm_rad.map(|k| k.clamp(0.0, k_max));
+        let damping_nm_s_rad = z.damping_nm_s_rad.map(|d| d.clamp(0.0, d_max));
         if stiffness_nm_rad != z.stiffness_nm_rad || damping_nm_s_rad != z.damping_nm_s_rad {
             self.counters.count(Intervention::Gain);
         }
