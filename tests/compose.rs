@@ -181,31 +181,15 @@ fn only_the_routers_and_the_link_emulator_join_the_wan_and_hardware_stays_off_it
     .unwrap();
     // The local router dials the remote site by name; on the WAN that name is the
     // link emulator, which listens on the address it forwards from.
-    // Two links across the WAN, the camera views and diagnostics (Zenoh priorities
-    // 6-7) on one, the rest (0-5) on the other, so views waiting below Zenoh (in TLS
-    // and the kernel) hold up only views. Each keeps the kernel's buffers small, so a
-    // slow WAN's backlog waits in Zenoh's priority queues (docs/network.md); so does
-    // the remote router's WAN listener, whose links also carry 16 KiB batches.
+    // One link across the WAN (docs/deployment.md, "One link across the WAN"). It keeps
+    // the kernel's buffers small, so a slow WAN's backlog waits in Zenoh's priority
+    // queues (docs/network.md); so does the remote router's WAN listener, whose links
+    // also carry 16 KiB batches.
     let small = "#so_sndbuf=16384;so_rcvbuf=16384";
     assert_eq!(
         local.bus.zenoh.connect,
-        [
-            format!("tls/remote-site.wan:7447?prio=0-5{small}"),
-            format!("tls/remote-site.wan:7447?prio=6-7{small}")
-        ]
+        [format!("tls/remote-site.wan:7447{small}")]
     );
-    // The views' priority class is the one the second link carries, every other
-    // class the first's.
-    assert_eq!(
-        teleop_bus::priority(teleop_interfaces::QosClass::Image) as u8,
-        6
-    );
-    for q in [
-        teleop_interfaces::QosClass::Control,
-        teleop_interfaces::QosClass::State,
-    ] {
-        assert!((teleop_bus::priority(q) as u8) <= 5, "{q:?}");
-    }
     let remote: teleop_node::router::RouterConfig = teleop_node::config::load_checked(
         &repo_root().join("deploy/compose/config/remote-router/router.toml"),
     )
@@ -224,22 +208,23 @@ fn only_the_routers_and_the_link_emulator_join_the_wan_and_hardware_stays_off_it
     // (deeper queues for the feedback's priorities, views dropped at once rather than
     // holding the router's reading of their link): the file is the container's
     // /etc/teleop one, the certificates and the site's interfaces are left out here.
-    let in_repo = |z: &teleop_bus::ZenohSettings| {
-        let file = z.config_file.clone().unwrap();
+    let in_repo = |file: &std::path::Path| {
         repo_root()
             .join("deploy/compose/config")
             .join(file.strip_prefix("/etc/teleop/").unwrap())
     };
+    // Only the remote router has such a file.
+    assert!(local.bus.zenoh.config_file.is_none());
     for (z, remote_site) in [(&local.bus.zenoh, false), (&remote.bus.zenoh, true)] {
         let mut z = z.clone();
         z.tls = None;
         z.hardware_interfaces = vec!["*".into()];
-        z.config_file = Some(in_repo(&z));
+        z.config_file = z.config_file.as_deref().map(in_repo);
         let cfg = z.to_zenoh().unwrap();
-        // Both ends take the WAN's two links in one transport.
+        // One link per transport (Zenoh's default): see above.
         assert_eq!(
             cfg.get_json("transport/unicast/max_links").unwrap(),
-            "2",
+            "1",
             "{remote_site}"
         );
         if remote_site {

@@ -411,8 +411,8 @@ async fn a_second_operator_site_is_refused_and_reported_never_blended() {
 }
 
 /// The simulator renders the top and side camera views of its world (as a camera driver
-/// would publish them); the feedback publisher forwards them, rate-limited, to the
-/// operator site.
+/// would publish them); the feedback publisher forwards them, rate-limited and as JPEG,
+/// to the operator site.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn remote_camera_views_reach_the_operator_site() {
     let _one = ONE_SYSTEM.lock().await;
@@ -449,11 +449,20 @@ async fn remote_camera_views_reach_the_operator_site() {
         ("side", &side, "remote_camera_side_optical_frame"),
     ] {
         for _ in 0..3 {
-            let image = sub
+            let jpeg = sub
                 .recv_timeout(Duration::from_secs(4))
                 .await
                 .unwrap_or_else(|| panic!("no {view} image reached the operator site"))
                 .msg;
+            assert_eq!(jpeg.format, "jpeg", "{view}");
+            // JPEG: a fraction of the raw view's 57.6 kB.
+            assert!(
+                jpeg.data.len() < 160 * 120 * 3 / 4,
+                "{view}: {} B",
+                jpeg.data.len()
+            );
+            let image = teleop_msgs::image_codec::decode_rgb8(&jpeg).unwrap();
+            assert_eq!(image.header, jpeg.header);
             assert_eq!(image.encoding, "rgb8", "{view}");
             assert_eq!((image.width, image.height), (160, 120), "{view}");
             assert_eq!(image.header.frame_id, frame_id);

@@ -88,7 +88,7 @@ for c in "${CONDITIONS[@]}"; do
   link set $settings >/dev/null
   OUT=$dir
   ids=$(listen remote r 34 /teleop/wrist_pose /teleop/hand/joint_targets /teleop/status
-    listen local l 34 /teleop/remote_camera/top/image /teleop/pr2/joint_states)
+    listen local l 34 /teleop/remote_camera/top/image/compressed /teleop/pr2/joint_states)
   TELEOP_REPORT_DIR=$dir compose run --rm report >"$dir/report.log" 2>&1 &
   report=$!
   for _ in $(seq 300); do

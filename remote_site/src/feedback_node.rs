@@ -2,8 +2,9 @@
 //! arm and hand hardware (read-only handles: it never commands them) and publishes the
 //! joint states of both robots and the five fingertip pressures, rate-limited, plus its
 //! status. Forwards the two camera views (`teleop/hw/camera/{top,side}/image`) to the
-//! operator site, each at most `camera_rate_hz`, newest frame only: frames that arrive
-//! faster are dropped and counted, never queued.
+//! operator site as JPEG (`teleop/remote_camera/{top,side}/image/compressed`), each at
+//! most `camera_rate_hz`, newest frame only: frames that arrive faster are dropped and
+//! counted, never queued.
 
 use std::time::Duration;
 
@@ -29,6 +30,9 @@ pub struct FeedbackConfig {
     /// no camera images. New frames are looked for at `rate_hz` and forwarded on
     /// arrival within this limit.
     pub camera_rate_hz: f64,
+    /// JPEG quality of the forwarded camera views, 1-100 (libjpeg's scale; 80 keeps a
+    /// 320 x 240 view near 1/20 of its raw size: docs/network.md).
+    pub camera_jpeg_quality: u8,
     pub bus: BusConfig,
 }
 
@@ -39,6 +43,7 @@ impl Default for FeedbackConfig {
             rate_hz: topics::PR2_JOINT_STATES.spec.rate_hz,
             hardware_timeout_s: 0.1,
             camera_rate_hz: topics::REMOTE_CAMERA_TOP.spec.rate_hz,
+            camera_jpeg_quality: 80,
             bus: BusConfig::default(),
         }
     }
@@ -68,6 +73,12 @@ impl NodeConfig for FeedbackConfig {
             return Err(format!(
                 "camera_rate_hz must be in [0, 60], got {}",
                 self.camera_rate_hz
+            ));
+        }
+        if !(1..=100).contains(&self.camera_jpeg_quality) {
+            return Err(format!(
+                "camera_jpeg_quality must be in [1, 100], got {}",
+                self.camera_jpeg_quality
             ));
         }
         Ok(())
@@ -107,7 +118,9 @@ impl FeedbackNode {
                     name,
                     camera: BusCamera::monitor(bus, &from, CameraKind::Color).await?,
                     publisher: bus.publisher(&to).await?,
+                    quality: cfg.camera_jpeg_quality,
                     forwarded: 0,
+                    bytes: 0,
                     // 10 % below the period: frames arriving at exactly the limit's rate
                     // (with jitter) all pass.
                     min_interval_s: 0.9 / cfg.camera_rate_hz,
@@ -195,6 +208,7 @@ impl Node for FeedbackNode {
         for c in &self.cameras {
             let name = |what| format!("feedback.camera_{}.{what}", c.name);
             counters.push((name("forwarded"), c.forwarded));
+            counters.push((name("bytes"), c.bytes));
             counters.push((name("dropped"), c.camera.dropped()));
             counters.push((name("bad"), c.camera.bad_images()));
         }
@@ -222,8 +236,12 @@ pub async fn run(cfg: FeedbackConfig, duration: Option<Duration>) -> anyhow::Res
 struct CameraForward {
     name: &'static str,
     camera: BusCamera,
-    publisher: teleop_bus::Publisher<teleop_msgs::Image>,
+    publisher: teleop_bus::Publisher<teleop_msgs::CompressedImage>,
+    /// JPEG quality, 1-100.
+    quality: u8,
     forwarded: u64,
+    /// JPEG bytes forwarded.
+    bytes: u64,
     /// Shortest time between two forwarded frames, s.
     min_interval_s: f64,
     last_sent_s: Option<f64>,
@@ -231,9 +249,10 @@ struct CameraForward {
 
 impl CameraForward {
     /// Sends the newest image since the last forwarded one, if any and if the rate
-    /// limit allows, as it came (stamp and frame of the camera). While the limit holds
+    /// limit allows, as JPEG with the camera's stamp and frame. While the limit holds
     /// frames back they wait in the newest-only subscription (older ones are dropped
-    /// and counted there).
+    /// and counted there). An image that cannot be compressed (not `rgb8`) is not sent
+    /// and the error names it.
     fn forward(&mut self, now_s: f64) -> anyhow::Result<()> {
         if self
             .last_sent_s
@@ -242,8 +261,10 @@ impl CameraForward {
             return Ok(());
         }
         if let Some(image) = self.camera.read(now_s)? {
-            self.publisher.put(&image)?;
+            let jpeg = teleop_msgs::image_codec::jpeg_from_rgb8(&image, self.quality)?;
+            self.publisher.put(&jpeg)?;
             self.forwarded += 1;
+            self.bytes += jpeg.data.len() as u64;
             self.last_sent_s = Some(now_s);
         }
         Ok(())

@@ -6,8 +6,8 @@
 use std::marker::PhantomData;
 
 use teleop_msgs::{
-    FingertipPressures, Image, JointCommand, JointState, Message, NodeStatus, OperatorInput,
-    PoseStamped,
+    CompressedImage, FingertipPressures, Image, JointCommand, JointState, Message, NodeStatus,
+    OperatorInput, PoseStamped,
 };
 
 /// Which way a topic crosses (or does not cross) between the two sites.
@@ -253,20 +253,21 @@ pub const FINGERTIP_PRESSURES: Topic<FingertipPressures> = Topic::new(
     Publishers::Nodes(&["feedback_publisher"]),
     "Five BioTac-like fingertip contact forces (N)",
 );
-/// Remote camera, top view.
-pub const REMOTE_CAMERA_TOP: Topic<Image> = Topic::new(
-    "teleop/remote_camera/top/image",
+/// Remote camera, top view, JPEG-compressed (image_transport's `compressed` topic name):
+/// a raw view (230 kB) would not cross a capped WAN whole (docs/network.md).
+pub const REMOTE_CAMERA_TOP: Topic<CompressedImage> = Topic::new(
+    "teleop/remote_camera/top/image/compressed",
     RemoteToLocal,
     15.0,
     Q::Image,
     None,
     Publishers::Nodes(&["feedback_publisher"]),
-    "Top view of the robot's workspace (rgb8), rate-limited",
+    "Top view of the robot's workspace (JPEG of the rgb8 camera image), rate-limited",
 );
-/// Remote camera, side view.
-pub const REMOTE_CAMERA_SIDE: Topic<Image> = REMOTE_CAMERA_TOP.renamed(
-    "teleop/remote_camera/side/image",
-    "Side view of the robot's workspace (rgb8), rate-limited",
+/// Remote camera, side view, JPEG-compressed.
+pub const REMOTE_CAMERA_SIDE: Topic<CompressedImage> = REMOTE_CAMERA_TOP.renamed(
+    "teleop/remote_camera/side/image/compressed",
+    "Side view of the robot's workspace (JPEG of the rgb8 camera image), rate-limited",
 );
 /// Depth image of the operator's hand from the camera on the UR5, as its driver (or the
 /// operator-site simulator standing in for it) publishes it: stamped with the capture

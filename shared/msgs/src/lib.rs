@@ -12,6 +12,7 @@
 //! * Every type knows its ROS 2 name and its RIHS01 type hash (REP 2011).
 
 pub mod description;
+pub mod image_codec;
 mod types;
 
 pub use description::{MsgDescription, WireError};

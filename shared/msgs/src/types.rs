@@ -378,6 +378,41 @@ impl Image {
     }
 }
 
+/// `sensor_msgs/msg/CompressedImage`: an image in a file format, as ROS's
+/// `image_transport` "compressed" transport publishes it on `<image topic>/compressed`.
+/// `format` is `"jpeg"` or `"png"` (the transport also writes e.g. `"rgb8; jpeg
+/// compressed bgr8"`; [`CompressedImage::codec`] reads either form).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct CompressedImage {
+    pub header: Header,
+    pub format: String,
+    #[serde(with = "serde_bytes")]
+    pub data: Vec<u8>,
+}
+message!(
+    CompressedImage,
+    "sensor_msgs/msg/CompressedImage",
+    "RIHS01_15640771531571185e2efc8a100baf923961a4d15d5569652e6cb6691e8e371a",
+    [
+        F::new("header", B::Nested(Header::description)),
+        F::new("format", B::String),
+        F::seq("data", B::Uint8)
+    ]
+);
+
+impl CompressedImage {
+    /// The file format named by `format`: its last word (`"rgb8; jpeg compressed bgr8"`
+    /// -> `jpeg`, as image_transport writes it) or the whole of it (`"jpeg"`), lower case.
+    pub fn codec(&self) -> Option<&'static str> {
+        let f = self.format.to_ascii_lowercase();
+        ["jpeg", "png"].into_iter().find(|c| {
+            f == *c
+                || f.split(|ch: char| ch == ';' || ch.is_whitespace())
+                    .any(|w| w == *c)
+        })
+    }
+}
+
 // ---------------------------------------------------------------- teleop_msgs
 
 /// `teleop_msgs/msg/OperatorInput`: the operator's pedals and switches.
@@ -579,6 +614,7 @@ pub fn all_descriptions() -> Vec<(&'static MsgDescription, &'static str)> {
         (TransformStamped::description(), TransformStamped::TYPE_HASH),
         (JointState::description(), JointState::TYPE_HASH),
         (Image::description(), Image::TYPE_HASH),
+        (CompressedImage::description(), CompressedImage::TYPE_HASH),
         (OperatorInput::description(), OperatorInput::TYPE_HASH),
         (
             FingertipPressures::description(),

@@ -2,15 +2,15 @@
 #![allow(clippy::unwrap_used)]
 
 use teleop_msgs::{
-    FingertipPressures, Header, Image, JointCommand, JointState, Message, NodeStatus,
-    OperatorInput, Point, Pose, PoseStamped, Quaternion, Time, Transform, TransformStamped,
-    Vector3,
+    CompressedImage, FingertipPressures, Header, Image, JointCommand, JointState, Message,
+    NodeStatus, OperatorInput, Point, Pose, PoseStamped, Quaternion, Time, Transform,
+    TransformStamped, Vector3,
 };
 
 #[test]
 fn computed_hash_equals_declared_hash_for_every_type() {
     let all = teleop_msgs::all_descriptions();
-    assert_eq!(all.len(), 15);
+    assert_eq!(all.len(), 16);
     let mut mismatches = Vec::new();
     for (desc, declared) in &all {
         let computed = desc.type_hash();
@@ -43,6 +43,7 @@ fn all_descriptions_lists_every_type_once() {
         TransformStamped::TYPE_NAME,
         JointState::TYPE_NAME,
         Image::TYPE_NAME,
+        CompressedImage::TYPE_NAME,
         OperatorInput::TYPE_NAME,
         FingertipPressures::TYPE_NAME,
         NodeStatus::TYPE_NAME,
@@ -75,6 +76,10 @@ fn published_kilted_hashes() {
         "RIHS01_0a241f87d04668d94099cbb5ba11691d5ad32c2f29682e4eb5653424bd275206",
     );
     assert_hash::<Image>("RIHS01_d31d41a9a4c4bc8eae9be757b0beed306564f7526c88ea6a4588fb9582527d47");
+    // Also as rosbags 0.11.9 computes it (ROS2_KILTED store).
+    assert_hash::<CompressedImage>(
+        "RIHS01_15640771531571185e2efc8a100baf923961a4d15d5569652e6cb6691e8e371a",
+    );
 }
 
 /// Hashes of the nested standard types, as computed independently by rosbags 0.11.9

@@ -17,9 +17,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use teleop_msgs::{
-    FingertipPressures, Header, Image, JointCommand, JointState, Message, NodeStatus,
-    OperatorInput, Point, Pose, PoseStamped, Quaternion, Time, Transform, TransformStamped,
-    Vector3, decode, encode, encodings,
+    CompressedImage, FingertipPressures, Header, Image, JointCommand, JointState, Message,
+    NodeStatus, OperatorInput, Point, Pose, PoseStamped, Quaternion, Time, Transform,
+    TransformStamped, Vector3, decode, encode, encodings,
 };
 
 type Check = Box<dyn Fn(&str, &[u8], &[u8], &[u8]) -> Result<(), String>>;
@@ -243,6 +243,14 @@ fn cases() -> Vec<Case> {
                 stiffness: vec![20.0, 1.0, 0.5],
                 damping: vec![0.2, 0.05, 0.0],
                 max_effort: vec![2.0, 2.0, 5.0],
+            },
+        ),
+        case(
+            "compressed_image_jpeg",
+            CompressedImage {
+                header: Header::new(stamp, "remote_camera_top_optical_frame"),
+                format: "jpeg".into(),
+                data: vec![0xff, 0xd8, 0xff, 0xdb, 0x00, 0x43, 0x00, 0xff, 0xd9],
             },
         ),
         case(

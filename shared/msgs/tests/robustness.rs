@@ -12,9 +12,9 @@ use common::*;
 use proptest::collection::vec;
 use proptest::prelude::*;
 use teleop_msgs::{
-    CodecError, FingertipPressures, Header, Image, JointCommand, JointState, Message, NodeStatus,
-    OperatorInput, Point, Pose, PoseStamped, Quaternion, Time, Transform, TransformStamped,
-    Vector3, WireError, decode, encode,
+    CodecError, CompressedImage, FingertipPressures, Header, Image, JointCommand, JointState,
+    Message, NodeStatus, OperatorInput, Point, Pose, PoseStamped, Quaternion, Time, Transform,
+    TransformStamped, Vector3, WireError, decode, encode,
 };
 
 /// Decodes `bytes` as `T` and checks the outcome is consistent:
@@ -58,6 +58,7 @@ fn decode_as_every_type(bytes: &[u8]) -> Result<(), TestCaseError> {
     decode_consistent::<TransformStamped>(bytes)?;
     decode_consistent::<JointState>(bytes)?;
     decode_consistent::<Image>(bytes)?;
+    decode_consistent::<CompressedImage>(bytes)?;
     decode_consistent::<OperatorInput>(bytes)?;
     decode_consistent::<FingertipPressures>(bytes)?;
     decode_consistent::<NodeStatus>(bytes)?;
@@ -144,6 +145,15 @@ fn valid_samples() -> Vec<(&'static str, Vec<u8>)> {
             .unwrap(),
         ),
         (
+            CompressedImage::TYPE_NAME,
+            encode(&CompressedImage {
+                header: header.clone(),
+                format: "jpeg".into(),
+                data: vec![0xff, 0xd8, 0xff, 0xe0, 0x00, 0x10, 0xff, 0xd9],
+            })
+            .unwrap(),
+        ),
+        (
             OperatorInput::TYPE_NAME,
             encode(&OperatorInput {
                 header: header.clone(),
@@ -213,6 +223,7 @@ fn decode_named(name: &str, bytes: &[u8]) -> Result<(), CodecError> {
         TransformStamped::TYPE_NAME => d::<TransformStamped>(bytes),
         JointState::TYPE_NAME => d::<JointState>(bytes),
         Image::TYPE_NAME => d::<Image>(bytes),
+        CompressedImage::TYPE_NAME => d::<CompressedImage>(bytes),
         OperatorInput::TYPE_NAME => d::<OperatorInput>(bytes),
         FingertipPressures::TYPE_NAME => d::<FingertipPressures>(bytes),
         NodeStatus::TYPE_NAME => d::<NodeStatus>(bytes),

@@ -7,6 +7,10 @@
 //! and copying both frames into `rgb8` messages, against a baseline in the same run: a
 //! plain copy of the same image bytes.
 //!
+//! The views as they cross the WAN: both compressed to JPEG at the feedback publisher's
+//! default quality (80) and CDR-encoded, against the raw views CDR-encoded as they
+//! were sent before (the sizes are printed).
+//!
 //! ```text
 //! cargo bench --workspace --bench sim
 //! ```
@@ -81,6 +85,44 @@ fn bench(c: &mut Criterion) {
                 to.clear();
                 to.extend_from_slice(std::hint::black_box(from));
             }
+        })
+    });
+    for (view, image) in View::ALL.into_iter().zip(&mut images) {
+        cameras.write_image(view, Time::default(), image);
+    }
+    let jpeg = |q| {
+        images
+            .iter()
+            .map(|i| teleop_msgs::image_codec::jpeg_from_rgb8(i, q))
+            .collect::<Result<Vec<_>, _>>()
+    };
+    let Ok(sample) = jpeg(80) else {
+        return;
+    };
+    let raw_bytes: usize = images
+        .iter()
+        .map(|i| teleop_msgs::encode(i).map_or(0, |b| b.len()))
+        .sum();
+    let jpeg_bytes: usize = sample
+        .iter()
+        .map(|i| teleop_msgs::encode(i).map_or(0, |b| b.len()))
+        .sum();
+    println!("both views on the wire: raw {raw_bytes} B, JPEG q80 {jpeg_bytes} B");
+    c.bench_function("views_jpeg_q80_both_320x240", |b| {
+        b.iter(|| {
+            jpeg(80).map(|v| {
+                v.iter()
+                    .map(|i| teleop_msgs::encode(i).map_or(0, |b| b.len()))
+                    .sum::<usize>()
+            })
+        })
+    });
+    c.bench_function("baseline_views_raw_cdr_both_320x240", |b| {
+        b.iter(|| {
+            images
+                .iter()
+                .map(|i| teleop_msgs::encode(std::hint::black_box(i)).map_or(0, |b| b.len()))
+                .sum::<usize>()
         })
     });
 }

@@ -9,7 +9,8 @@ use teleop_bus::keys::{EntityKind, GraphEntity};
 use teleop_bus::{Bus, BusConfig, SourcePolicy, StatsSnapshot, Subscriber};
 use teleop_interfaces::topics::{self, Topic, TopicSpec};
 use teleop_msgs::{
-    FingertipPressures, Image, JointState, Message, NodeStatus, OperatorInput, PoseStamped,
+    CompressedImage, FingertipPressures, Image, JointCommand, JointState, Message, NodeStatus,
+    OperatorInput, PoseStamped,
 };
 
 /// Output format of `topic echo`.
@@ -43,6 +44,8 @@ macro_rules! dispatch {
             t if t == OperatorInput::TYPE_NAME => $f::<OperatorInput>($($args),*).await,
             t if t == FingertipPressures::TYPE_NAME => $f::<FingertipPressures>($($args),*).await,
             t if t == Image::TYPE_NAME => $f::<Image>($($args),*).await,
+            t if t == CompressedImage::TYPE_NAME => $f::<CompressedImage>($($args),*).await,
+            t if t == JointCommand::TYPE_NAME => $f::<JointCommand>($($args),*).await,
             t if t == NodeStatus::TYPE_NAME => $f::<NodeStatus>($($args),*).await,
             other => bail!("no decoder for type {other}"),
         }
@@ -343,4 +346,27 @@ pub async fn monitor_until(
     drop(subs);
     bus.close().await?;
     Ok(())
+}
+
+#[cfg(test)]
+mod dispatch_tests {
+    use super::*;
+
+    async fn type_name_of<T: Message>() -> anyhow::Result<&'static str> {
+        Ok(T::TYPE_NAME)
+    }
+
+    /// `topic echo`, `hz` and the other inspectors decode every topic of the table.
+    #[test]
+    fn every_topic_of_the_table_has_a_decoder() {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .build()
+            .unwrap();
+        for spec in topics::ALL {
+            let name = rt
+                .block_on(async { dispatch!(spec, type_name_of()) })
+                .unwrap_or_else(|e| panic!("/{}: {e}", spec.name));
+            assert_eq!(name, spec.type_name);
+        }
+    }
 }

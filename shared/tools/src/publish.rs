@@ -10,7 +10,8 @@ use teleop_bus::{Attachment, Bus, BusConfig};
 use teleop_interfaces::topics::{self, Topic, TopicSpec};
 use teleop_msgs::description::{Arity, BaseType, MsgDescription};
 use teleop_msgs::{
-    FingertipPressures, Image, JointState, Message, NodeStatus, OperatorInput, PoseStamped,
+    CompressedImage, FingertipPressures, Image, JointCommand, JointState, Message, NodeStatus,
+    OperatorInput, PoseStamped,
 };
 
 #[derive(Debug, Clone, clap::Args)]
@@ -249,6 +250,12 @@ pub async fn run(cfg: &BusConfig, args: &PubArgs) -> anyhow::Result<()> {
             publish_typed::<FingertipPressures>(&bus, spec, args, &texts).await
         }
         t if t == Image::TYPE_NAME => publish_typed::<Image>(&bus, spec, args, &texts).await,
+        t if t == CompressedImage::TYPE_NAME => {
+            publish_typed::<CompressedImage>(&bus, spec, args, &texts).await
+        }
+        t if t == JointCommand::TYPE_NAME => {
+            publish_typed::<JointCommand>(&bus, spec, args, &texts).await
+        }
         t if t == NodeStatus::TYPE_NAME => {
             publish_typed::<NodeStatus>(&bus, spec, args, &texts).await
         }

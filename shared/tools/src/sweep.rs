@@ -3,7 +3,7 @@
 //! each): `condition.txt` (name, link settings), the operator site's end-of-run report
 //! (`report.json`), the robot LAN's listeners (`r-teleop-wrist_pose.jsonl`,
 //! `r-hand-joint_targets.jsonl`, `r-teleop-status.jsonl`) and the operator LAN's
-//! (`l-top-image.jsonl`, a remote camera view).
+//! (`l-image-compressed.jsonl`, the remote camera's top view).
 //!
 //! Checked for every condition, from the robot-site controllers' own counters and the
 //! robot LAN's recordings:
@@ -307,7 +307,7 @@ pub fn condition(dir: &Path) -> anyhow::Result<ConditionResult> {
     .with_context(|| format!("parsing {}", dir.join("report.json").display()))?;
     let wrist = arrivals(&dir.join("r-teleop-wrist_pose.jsonl"))?;
     let targets = arrivals(&dir.join("r-hand-joint_targets.jsonl"))?;
-    let camera = arrivals(&dir.join("l-top-image.jsonl"))?;
+    let camera = arrivals(&dir.join("l-image-compressed.jsonl"))?;
     let pr2_at_operator = arrivals(&dir.join("l-pr2-joint_states.jsonl"))?;
     let feedback_staleness = Spread::of_seconds(staleness_s(&pr2_at_operator));
     let status = read_jsonl(&dir.join("r-teleop-status.jsonl"))?;
