@@ -29,10 +29,10 @@ MOVING_ABOVE_RAD_S = 0.03
 #   "hold": the Shadow hand controller holds the last posture (its targets' source is
 #           gone): the controller counts hand.hold.stale_target and the posture, each
 #           joint averaged over HOLD_WINDOW_S, drifts less than HOLD_DRIFT_RAD between
-#           the first and the last window. (Not a stillness check: re-run with the
-#           joint-impedance command, 2026-12-04, the held fingers still vibrated at
-#           4-9 rad/s with 0.001 rad of drift; hand inference's kill is therefore not in
-#           the compose test, docs/deployment.md.)
+#           the first and the last window. (Not a stillness check: the arm, which the
+#           operator still moves, can drive the holding hand into the scene's objects
+#           and knock its fingers about; 2026-12-04: 4-9 rad/s with 0.001 rad of
+#           drift, docs/deployment.md.)
 #   "displacement": the listener's own router was the one killed, nothing is heard
 #           while it is gone: the arm before the kill against the arm once heard again.
 HOLD_WINDOW_S = 0.25
