@@ -8,20 +8,21 @@
 #   * listeners on the robot's LAN record the commands as they arrive there (wrist
 #     pose, finger targets) and every node's status (the controllers' counters: ages of
 #     the commands they executed, refusals, stops, holds),
-#   * a listener on the operator's LAN records one remote camera view and the PR2's
-#     joint states (rates; how old the newest state there is).
+#   * a listener on the operator's LAN records the remote camera's top view and the
+#     PR2's joint states (rates; how old the newest state there is); another takes the
+#     side view, so both views cross the WAN as they would to an operator's display.
 #
 # Then `teleop sweep-report` reads every condition, checks each (no command older than
 # its deadline executed at the robot site, none out of order, the arm stopped and the
-# hand held whenever the commands were late; under a cap of 2 Mbit/s or more, the
+# hand held whenever the commands were late; under a cap of 1 Mbit/s or more, the
 # camera views gave way to the feedback: the operator's newest PR2 state within its
 # deadline, docs/network.md)
 # and writes the table (sweep.md) and the
 # plots (sweep.png) into the sweep directory.
 #
-#   sweep.sh [full|reduced|caps] (default full: 12 conditions, about 8 minutes;
+#   sweep.sh [full|reduced|caps] (default full: 13 conditions, about 13 minutes;
 #                                 reduced: 6 conditions, the compose test's set;
-#                                 caps: ideal and the three bandwidth caps)
+#                                 caps: ideal and the four bandwidth caps)
 #
 # Needs: COMPOSE_PROJECT_NAME, TELEOP_CERTS, TELEOP_REPORT_DIR (deploy/compose/test.sh
 # exports them; `bash deploy/compose/test.sh --sweep full` runs the full sweep).
@@ -48,6 +49,7 @@ case $SET in
       "20ms,10%loss|delay_ms=20 loss_pct=10"
       "20ms,10Mbit|delay_ms=20 rate_mbit=10"
       "20ms,2Mbit|delay_ms=20 rate_mbit=2"
+      "20ms,1Mbit|delay_ms=20 rate_mbit=1"
       "20ms,0.5Mbit|delay_ms=20 rate_mbit=0.5") ;;
   reduced) CONDITIONS=(
       "ideal|delay_ms=0"
@@ -60,6 +62,7 @@ case $SET in
       "ideal|delay_ms=0"
       "20ms,10Mbit|delay_ms=20 rate_mbit=10"
       "20ms,2Mbit|delay_ms=20 rate_mbit=2"
+      "20ms,1Mbit|delay_ms=20 rate_mbit=1"
       "20ms,0.5Mbit|delay_ms=20 rate_mbit=0.5") ;;
   *) echo "sweep: unknown set '$SET' (full, reduced or caps)"; exit 2 ;;
 esac
@@ -88,7 +91,8 @@ for c in "${CONDITIONS[@]}"; do
   link set $settings >/dev/null
   OUT=$dir
   ids=$(listen remote r 34 /teleop/wrist_pose /teleop/hand/joint_targets /teleop/status
-    listen local l 34 /teleop/remote_camera/top/image/compressed /teleop/pr2/joint_states)
+    listen local l 34 /teleop/remote_camera/top/image/compressed /teleop/pr2/joint_states
+    listen local ls 34 /teleop/remote_camera/side/image/compressed)
   TELEOP_REPORT_DIR=$dir compose run --rm report >"$dir/report.log" 2>&1 &
   report=$!
   for _ in $(seq 300); do

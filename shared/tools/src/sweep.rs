@@ -34,9 +34,10 @@ const ARM_ACTIVE_AFTER_POSE_S: f64 = 0.1 + 0.05;
 /// The same for the hand: its command timeout (`command_timeout_s`, 0.2 s) + 0.05 s.
 const HAND_ACTIVE_AFTER_TARGETS_S: f64 = 0.2 + 0.05;
 /// The smallest bandwidth cap under which the camera views must give way to the
-/// feedback: above what the feedback topics need on their own (docs/network.md), below
-/// a camera view's rate (27.6 Mbit/s), so something must be dropped.
-const GIVE_WAY_MIN_MBIT: f64 = 2.0;
+/// feedback: above what the feedback topics need on their own (about 0.3 Mbit/s,
+/// docs/network.md). Below the two JPEG views' 1.8 Mbit/s (both are taken at the
+/// operator's LAN), something must be dropped, and it must be views.
+const GIVE_WAY_MIN_MBIT: f64 = 1.0;
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct SweepArgs {
