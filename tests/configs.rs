@@ -7,6 +7,7 @@ use std::path::Path;
 use teleop_hand_inference::node::HandInferenceConfig;
 use teleop_local_site::camera_arm_node::CameraArmNodeConfig;
 use teleop_local_site::local_sim::LocalSimConfig;
+use teleop_local_site::operator_display::OperatorDisplayConfig;
 use teleop_local_site::wrist_tracker::WristTrackerConfig;
 use teleop_node::NodeConfig;
 use teleop_node::config::{load_toml, parse_toml};
@@ -65,6 +66,10 @@ fn checker(stem: &str) -> Option<Checks> {
         "hand_inference" => Some((
             check::<HandInferenceConfig>,
             equals_default::<HandInferenceConfig>,
+        )),
+        "operator_display" => Some((
+            check::<OperatorDisplayConfig>,
+            equals_default::<OperatorDisplayConfig>,
         )),
         "router" => Some((check::<RouterConfig>, equals_default::<RouterConfig>)),
         _ => None,

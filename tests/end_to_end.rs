@@ -410,30 +410,41 @@ async fn a_second_operator_site_is_refused_and_reported_never_blended() {
     assert!(t_join - t_start > 3.0);
 }
 
-/// The simulator renders the top and side camera views of its world (as a camera driver
-/// would publish them); the feedback publisher forwards them, rate-limited and as JPEG,
-/// to the operator site.
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn remote_camera_views_reach_the_operator_site() {
-    let _one = ONE_SYSTEM.lock().await;
-    use teleop_remote_site::feedback_node::{self, FeedbackConfig};
-    use teleop_remote_site::sim_node::{self, SimNodeConfig};
-    use teleop_sim::CameraViewsConfig;
-
-    let (hub, spoke) = isolated_pair(23, free_port().unwrap());
-    let sim = SimNodeConfig {
+/// A robot simulator with 160 x 120 camera views on `hub`, and a feedback publisher
+/// with its defaults on `spoke`.
+fn small_views_sim_and_feedback(
+    hub: teleop_bus::BusConfig,
+    spoke: &teleop_bus::BusConfig,
+) -> (
+    teleop_remote_site::sim_node::SimNodeConfig,
+    teleop_remote_site::feedback_node::FeedbackConfig,
+) {
+    let sim = teleop_remote_site::sim_node::SimNodeConfig {
         bus: hub,
-        cameras: CameraViewsConfig {
+        cameras: teleop_sim::CameraViewsConfig {
             width_px: 160,
             height_px: 120,
             ..Default::default()
         },
         ..Default::default()
     };
-    let feedback = FeedbackConfig {
+    let feedback = teleop_remote_site::feedback_node::FeedbackConfig {
         bus: spoke.clone(),
         ..Default::default()
     };
+    (sim, feedback)
+}
+
+/// The simulator renders the top and side camera views of its world (as a camera driver
+/// would publish them); the feedback publisher forwards them, rate-limited and as JPEG,
+/// to the operator site.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn remote_camera_views_reach_the_operator_site() {
+    let _one = ONE_SYSTEM.lock().await;
+    use teleop_remote_site::{feedback_node, sim_node};
+
+    let (hub, spoke) = isolated_pair(23, free_port().unwrap());
+    let (sim, feedback) = small_views_sim_and_feedback(hub, &spoke);
     let probe = Bus::open("probe", &spoke).await.unwrap();
     let top = probe.subscriber(&topics::REMOTE_CAMERA_TOP).await.unwrap();
     let side = probe.subscriber(&topics::REMOTE_CAMERA_SIDE).await.unwrap();
@@ -489,4 +500,79 @@ async fn remote_camera_views_reach_the_operator_site() {
     assert_eq!(top.stats().rejected(), 0);
     feedback_task.await.unwrap().unwrap();
     sim_task.await.unwrap().unwrap();
+}
+
+/// The operator display answers each camera view with a receipt, and the feedback
+/// publisher paces the views by them: every view it sent is acknowledged, none taken as
+/// lost, and the round trip it measured is a loopback's. A receipt that names no camera
+/// is counted, nothing else.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_operator_display_acknowledges_the_views_and_the_publisher_paces_by_them() {
+    let _one = ONE_SYSTEM.lock().await;
+    use teleop_local_site::operator_display::{self, OperatorDisplayConfig};
+    use teleop_remote_site::{feedback_node, sim_node};
+
+    let (hub, spoke) = isolated_pair(25, free_port().unwrap());
+    let (sim, feedback) = small_views_sim_and_feedback(hub, &spoke);
+    let display = OperatorDisplayConfig {
+        bus: spoke.clone(),
+        ..Default::default()
+    };
+    let probe = Bus::open("probe", &spoke).await.unwrap();
+    let forged = probe
+        .publisher(&topics::REMOTE_CAMERA_RECEIPTS)
+        .await
+        .unwrap();
+    let sim_task = tokio::spawn(sim_node::run(sim, Some(Duration::from_secs(6))));
+    let feedback_task = tokio::spawn(feedback_node::run(
+        feedback,
+        Some(Duration::from_millis(5500)),
+    ));
+    // The display outlives the publisher, so every view sent can be acknowledged.
+    let display_task = tokio::spawn(operator_display::run(
+        display,
+        Some(Duration::from_millis(5700)),
+    ));
+    tokio::time::sleep(Duration::from_secs(3)).await;
+    for i in 0..3 {
+        forged
+            .put(&teleop_msgs::Header::new(
+                teleop_msgs::Time::from_nanos(i),
+                "no_such_camera",
+            ))
+            .unwrap();
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    let shown = display_task.await.unwrap().unwrap();
+    let sent = feedback_task.await.unwrap().unwrap();
+    sim_task.await.unwrap().unwrap();
+
+    let d = |name: &str| shown.counter(name).unwrap_or_else(|| panic!("{name}"));
+    let f = |name: &str| sent.counter(name).unwrap_or_else(|| panic!("{name}"));
+    assert_eq!(shown.state_at_stop, Lifecycle::Active, "{shown:?}");
+    for view in ["top", "side"] {
+        let received = d(&format!("display.view_{view}.received"));
+        assert!(received > 20, "{view}: {received} views shown");
+        assert_eq!(d(&format!("display.view_{view}.refused")), 0);
+        let age_us = d(&format!("display.view_{view}.age_us"));
+        assert!(age_us > 0 && age_us < 500_000, "{view}: {age_us} us");
+    }
+    assert_eq!(
+        d("display.receipts_sent"),
+        d("display.view_top.received") + d("display.view_side.received")
+    );
+    assert!(d("display.pr2_states.received") > 100, "{shown:?}");
+    assert!(d("display.pressures.received") > 100, "{shown:?}");
+
+    let forwarded = f("feedback.camera_top.forwarded") + f("feedback.camera_side.forwarded");
+    let acknowledged = f("feedback.camera_pacing.acknowledged");
+    // At most the last view of each camera may still be on its way at the stop.
+    assert!(
+        acknowledged + 2 >= forwarded && acknowledged > 40,
+        "{acknowledged} of {forwarded} views acknowledged: {sent:?}"
+    );
+    assert_eq!(f("feedback.camera_pacing.lost"), 0, "{sent:?}");
+    assert!(f("feedback.camera_pacing.unmatched") >= 3, "{sent:?}");
+    let rtt_us = f("feedback.camera_pacing.base_rtt_us");
+    assert!(rtt_us > 0 && rtt_us < 100_000, "{rtt_us} us");
 }

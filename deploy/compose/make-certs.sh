@@ -13,5 +13,5 @@ exec "$TELEOP" certs --out "$OUT" --keep-existing --days "${TELEOP_CERT_DAYS:-30
   local-router=172.30.1.2 \
   remote-router=172.30.2.2,172.30.9.2,remote-site.wan \
   remote_sim pr2_arm_controller shadow_hand_controller feedback_publisher \
-  local_sim wrist_tracker camera_arm hand_inference \
+  local_sim wrist_tracker camera_arm hand_inference operator_display \
   teleop-observer

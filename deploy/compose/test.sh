@@ -78,7 +78,7 @@ done < <(docker network ls --format '{{.Name}}')
 # programs running outside the stack (a `teleop launch` left running, say) slow every
 # container down, and a wrist pose delayed past its 100 ms deadline stops the PR2 for the
 # rest of the task. Named here.
-others=$(pgrep -a -f '(^|/)(teleop launch|remote_sim|local_sim|pr2_arm_controller|shadow_hand_controller|feedback_publisher|wrist_tracker|camera_arm|hand_inference)( |$)' |
+others=$(pgrep -a -f '(^|/)(teleop launch|remote_sim|local_sim|pr2_arm_controller|shadow_hand_controller|feedback_publisher|wrist_tracker|camera_arm|hand_inference|operator_display)( |$)' |
   grep -v -e containerd-shim -e "^$$ " || true)
 if [[ -n $others ]]; then
   echo "compose test: WARNING: the system's programs are running on this machine outside the stack; the figures will be slower:"
@@ -189,7 +189,8 @@ fi
 # simulator restarted: clutch pressed 2 s in), a listener on the robot's LAN records
 # the wrist poses and the nodes' statuses, the cut comes 7 s in and lasts 2 s;
 # check_partition.py checks the arm stopped in time and stayed stopped without a fresh
-# clutch press. Two cuts: a WAN partition (what the link held is released late and
+# clutch press. The listener runs 24 s: the simulator's restart has taken up to 4 s
+# here, and the check needs the poses coming back after the cut. Two cuts: a WAN partition (what the link held is released late and
 # must be refused), and the commanding wrist tracker's container paused (a frozen
 # process, not a dead one).
 cut_test() { # name cut-command restore-command [--released-late]
@@ -198,8 +199,8 @@ cut_test() { # name cut-command restore-command [--released-late]
     --network "${COMPOSE_PROJECT_NAME}_remote_lan" -v "$TELEOP_REPORT_DIR:/out" \
     -v "$TELEOP_CERTS:/certs:ro" "$IMAGE" sh -c "
       z='--mode client --connect tls/172.30.2.2:7447 --no-multicast-scouting ${OBSERVER[*]}'
-      teleop \$z topic echo /teleop/wrist_pose --format json --duration-s 16 >/out/$name-wrist.jsonl &
-      teleop \$z topic echo /teleop/status --format json --duration-s 16 >/out/$name-status.jsonl
+      teleop \$z topic echo /teleop/wrist_pose --format json --duration-s 24 >/out/$name-wrist.jsonl &
+      teleop \$z topic echo /teleop/status --format json --duration-s 24 >/out/$name-status.jsonl
       wait" >"$TELEOP_REPORT_DIR/probe.id"
   sleep 1.5
   compose restart -t 5 pc3-local-sim

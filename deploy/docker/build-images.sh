@@ -20,7 +20,7 @@ BASE=${TELEOP_BASE_IMAGE:-teleop-base:bookworm}
 # (router, report, inspection), and the WAN link emulator. tests/compose.rs checks this
 # list against the table.
 BINARIES=(teleop wan_link remote_sim pr2_arm_controller shadow_hand_controller feedback_publisher
-  local_sim wrist_tracker camera_arm hand_inference)
+  local_sim wrist_tracker camera_arm hand_inference operator_display)
 
 if [[ ${SKIP_CARGO_BUILD:-0} != 1 ]]; then
   (cd "$ROOT" && cargo build --release --workspace --bins --locked)

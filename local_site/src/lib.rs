@@ -9,6 +9,8 @@
 //!   traits (`teleop_hardware::{WristTracker, OperatorPanel}`);
 //! * [`camera_arm_node`]: the active-vision camera arm on the UR5, around the pure
 //!   control core [`camera_arm`];
+//! * [`operator_display`]: what the operator sees of the robot site (the camera views,
+//!   acknowledged so the robot site paces them to the WAN; the feedback's ages);
 //! * [`keyboard_panel`]: the operator panel (deadman, clutch, camera stop, motion
 //!   scale) on the keys of the wrist tracker's terminal.
 //!
@@ -19,5 +21,6 @@ pub mod camera_arm;
 pub mod camera_arm_node;
 pub mod keyboard_panel;
 pub mod local_sim;
+pub mod operator_display;
 pub mod tracking;
 pub mod wrist_tracker;

@@ -4,18 +4,22 @@
 //! status. Forwards the two camera views (`teleop/hw/camera/{top,side}/image`) to the
 //! operator site as JPEG (`teleop/remote_camera/{top,side}/image/compressed`), each at
 //! most `camera_rate_hz`, newest frame only: frames that arrive faster are dropped and
-//! counted, never queued.
+//! counted, never queued. On a WAN they give way to the feedback: the operator's
+//! display acknowledges each view it receives (`teleop/remote_camera/receipts`), and
+//! the views are paced by the round trip of those receipts ([`crate::view_pacer`]).
 
 use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
-use teleop_bus::{Bus, BusConfig, Publisher};
+use teleop_bus::{Bus, BusConfig, Publisher, Subscriber};
 use teleop_hardware::{ArmHardware, Camera, CameraKind, HandHardware, wire};
 use teleop_hardware_bus::{BusArm, BusCamera, BusHand};
 use teleop_interfaces::hardware::{PR2_ARM, SHADOW_HAND};
 use teleop_interfaces::topics;
-use teleop_msgs::{FingertipPressures, JointState, Lifecycle};
+use teleop_msgs::{FingertipPressures, Header, JointState, Lifecycle};
 use teleop_node::{FinalReport, Node, NodeConfig};
+
+use crate::view_pacer::{PacingConfig, ReceiptOutcome, ViewPacer};
 
 /// Configuration of the `feedback_publisher` node.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -31,8 +35,10 @@ pub struct FeedbackConfig {
     /// arrival within this limit.
     pub camera_rate_hz: f64,
     /// JPEG quality of the forwarded camera views, 1-100 (libjpeg's scale; 80 keeps a
-    /// 320 x 240 view near 1/20 of its raw size: docs/network.md).
+    /// 320 x 240 view near 1/31 of its raw size: docs/network.md).
     pub camera_jpeg_quality: u8,
+    /// Pacing of the views by the operator display's receipts.
+    pub camera_pacing: PacingConfig,
     pub bus: BusConfig,
 }
 
@@ -44,6 +50,7 @@ impl Default for FeedbackConfig {
             hardware_timeout_s: 0.1,
             camera_rate_hz: topics::REMOTE_CAMERA_TOP.spec.rate_hz,
             camera_jpeg_quality: 80,
+            camera_pacing: PacingConfig::default(),
             bus: BusConfig::default(),
         }
     }
@@ -81,7 +88,7 @@ impl NodeConfig for FeedbackConfig {
                 self.camera_jpeg_quality
             ));
         }
-        Ok(())
+        self.camera_pacing.validate()
     }
 }
 
@@ -95,6 +102,9 @@ pub struct FeedbackNode {
     hand_pub: Publisher<JointState>,
     pressure_pub: Publisher<FingertipPressures>,
     cameras: Vec<CameraForward>,
+    /// Receipts of the views from the operator's display.
+    receipts: Option<Subscriber<Header>>,
+    pacer: ViewPacer,
     arm_sent: u64,
     hand_sent: u64,
     missing: u64,
@@ -118,6 +128,8 @@ impl FeedbackNode {
                     name,
                     camera: BusCamera::monitor(bus, &from, CameraKind::Color).await?,
                     publisher: bus.publisher(&to).await?,
+                    frame_id: None,
+                    last_bytes: 0,
                     quality: cfg.camera_jpeg_quality,
                     forwarded: 0,
                     bytes: 0,
@@ -135,7 +147,13 @@ impl FeedbackNode {
             arm_pub: bus.publisher(&topics::PR2_JOINT_STATES).await?,
             hand_pub: bus.publisher(&topics::SHADOW_JOINT_STATES).await?,
             pressure_pub: bus.publisher(&topics::FINGERTIP_PRESSURES).await?,
+            receipts: if cameras.is_empty() {
+                None
+            } else {
+                Some(bus.subscriber(&topics::REMOTE_CAMERA_RECEIPTS).await?)
+            },
             cameras,
+            pacer: ViewPacer::new(cfg.camera_pacing.clone()),
             arm_sent: 0,
             hand_sent: 0,
             missing: 0,
@@ -180,10 +198,19 @@ impl Node for FeedbackNode {
             }
         }
         self.hardware_ok = ok;
+        self.take_receipts(now_s);
         // Cameras are checked at this (faster) rate and forwarded on arrival,
-        // rate-limited, so a 15 Hz camera is not aliased by a 15 Hz poll.
-        for c in &mut self.cameras {
-            if let Err(e) = c.forward(now_s) {
+        // rate-limited and paced, so a 15 Hz camera is not aliased by a 15 Hz poll.
+        // The view sent longest ago goes first, so a window with room for one view
+        // serves both in turn.
+        let mut order: Vec<usize> = (0..self.cameras.len()).collect();
+        order.sort_by(|a, b| {
+            let t = |i: &usize| self.cameras[*i].last_sent_s.unwrap_or(f64::NEG_INFINITY);
+            t(a).total_cmp(&t(b))
+        });
+        for i in order {
+            let c = &mut self.cameras[i];
+            if let Err(e) = c.forward(now_s, i, &mut self.pacer) {
                 self.last_error = format!("camera {}: {e}", c.name);
             }
         }
@@ -212,11 +239,54 @@ impl Node for FeedbackNode {
             counters.push((name("dropped"), c.camera.dropped()));
             counters.push((name("bad"), c.camera.bad_images()));
         }
+        if !self.cameras.is_empty() {
+            let p = self.pacer.counters();
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            let window = self.pacer.window_bytes() as u64;
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            let base_rtt_us = self.pacer.base_rtt_s().map_or(0, |s| (s * 1e6) as u64);
+            counters.extend([
+                (
+                    "feedback.camera_pacing.acknowledged".to_owned(),
+                    p.acknowledged,
+                ),
+                ("feedback.camera_pacing.lost".to_owned(), p.lost),
+                ("feedback.camera_pacing.held".to_owned(), p.held),
+                ("feedback.camera_pacing.unmatched".to_owned(), p.unmatched),
+                ("feedback.camera_pacing.window_bytes".to_owned(), window),
+                ("feedback.camera_pacing.base_rtt_us".to_owned(), base_rtt_us),
+            ]);
+        }
         counters
     }
 
     fn last_error(&self) -> String {
         self.last_error.clone()
+    }
+}
+
+impl FeedbackNode {
+    /// Feeds the receipts that came in to the pacer. A receipt for a frame no camera
+    /// has is counted as unmatched, nothing else.
+    fn take_receipts(&mut self, now_s: f64) {
+        let Some(receipts) = &self.receipts else {
+            return;
+        };
+        while let Some(r) = receipts.try_recv() {
+            let view = self
+                .cameras
+                .iter()
+                .position(|c| c.frame_id.as_deref() == Some(r.msg.frame_id.as_str()));
+            let outcome = match view {
+                Some(v) => self.pacer.receipt(now_s, v, r.msg.stamp.as_nanos()),
+                None => self
+                    .pacer
+                    .receipt(now_s, usize::MAX, r.msg.stamp.as_nanos()),
+            };
+            if let ReceiptOutcome::Acknowledged { rtt_s, queue_s } = outcome {
+                tracing::trace!(rtt_s, queue_s, "view acknowledged");
+            }
+        }
     }
 }
 
@@ -237,6 +307,10 @@ struct CameraForward {
     name: &'static str,
     camera: BusCamera,
     publisher: teleop_bus::Publisher<teleop_msgs::CompressedImage>,
+    /// The camera's frame, as its images name it (receipts are matched by it).
+    frame_id: Option<String>,
+    /// Size of the last JPEG sent, bytes (the next one's size for the pacer).
+    last_bytes: usize,
     /// JPEG quality, 1-100.
     quality: u8,
     forwarded: u64,
@@ -249,22 +323,31 @@ struct CameraForward {
 
 impl CameraForward {
     /// Sends the newest image since the last forwarded one, if any and if the rate
-    /// limit allows, as JPEG with the camera's stamp and frame. While the limit holds
-    /// frames back they wait in the newest-only subscription (older ones are dropped
-    /// and counted there). An image that cannot be compressed (not `rgb8`) is not sent
-    /// and the error names it.
-    fn forward(&mut self, now_s: f64) -> anyhow::Result<()> {
+    /// limit and the pacer allow, as JPEG with the camera's stamp and frame. While
+    /// they hold frames back the frames wait in the newest-only subscription (older
+    /// ones are dropped and counted there). An image that cannot be compressed (not
+    /// `rgb8`) is not sent and the error names it.
+    fn forward(&mut self, now_s: f64, view: usize, pacer: &mut ViewPacer) -> anyhow::Result<()> {
         if self
             .last_sent_s
             .is_some_and(|t| now_s - t < self.min_interval_s)
         {
             return Ok(());
         }
+        if !self.camera.has_new() || !pacer.may_send(now_s, self.last_bytes) {
+            return Ok(());
+        }
         if let Some(image) = self.camera.read(now_s)? {
             let jpeg = teleop_msgs::image_codec::jpeg_from_rgb8(&image, self.quality)?;
             self.publisher.put(&jpeg)?;
+            let bytes = jpeg.data.len();
+            pacer.sent(now_s, view, jpeg.header.stamp.as_nanos(), bytes);
+            if self.frame_id.as_deref() != Some(jpeg.header.frame_id.as_str()) {
+                self.frame_id = Some(jpeg.header.frame_id.clone());
+            }
             self.forwarded += 1;
-            self.bytes += jpeg.data.len() as u64;
+            self.bytes += bytes as u64;
+            self.last_bytes = bytes;
             self.last_sent_s = Some(now_s);
         }
         Ok(())

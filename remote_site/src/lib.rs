@@ -6,7 +6,8 @@
 //!   control of the PR2 arm;
 //! * `shadow_hand_controller` ([`hand_node`], core [`hand_controller`], gravity model
 //!   [`gravity`]): the Shadow hand's force control with its hold watchdog;
-//! * `feedback_publisher` ([`feedback_node`]): what the operator site sees of the robots.
+//! * `feedback_publisher` ([`feedback_node`]): what the operator site sees of the robots,
+//!   the camera views paced by the operator display's receipts ([`view_pacer`]).
 //!
 //! The hardware interfaces are `teleop-hardware` (traits, safety layer) and
 //! `teleop-hardware-bus` (over the bus); the simulated world is `teleop-sim`.
@@ -19,3 +20,4 @@ pub mod gravity;
 pub mod hand_controller;
 pub mod hand_node;
 pub mod sim_node;
+pub mod view_pacer;

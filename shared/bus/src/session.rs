@@ -24,7 +24,7 @@ use crate::stats::{Event, StatsSnapshot, TopicStats};
 pub fn priority(qos: QosClass) -> Priority {
     match qos {
         QosClass::Control => Priority::RealTime,
-        QosClass::State => Priority::InteractiveHigh,
+        QosClass::State | QosClass::Receipt => Priority::InteractiveHigh,
         QosClass::Image => Priority::DataLow,
         QosClass::Diagnostics => Priority::Background,
     }
@@ -794,6 +794,11 @@ impl<T: Message> Subscriber<T> {
     /// Takes the oldest queued sample (for depth-1 topics: the newest received), if any.
     pub fn try_recv(&self) -> Option<Received<T>> {
         self.shared.pop()
+    }
+
+    /// Whether a sample is queued (without taking it).
+    pub fn has_sample(&self) -> bool {
+        self.shared.queue.lock().is_ok_and(|q| !q.is_empty())
     }
 
     /// Waits for the next sample.

@@ -233,6 +233,11 @@ impl BusCamera {
         self.images.wake_on_sample(wake);
     }
 
+    /// Whether an image arrived that `read` has not returned yet.
+    pub fn has_new(&self) -> bool {
+        self.images.has_sample()
+    }
+
     /// When the image last returned by `read` was put on the bus (ns since the Unix
     /// epoch, the publisher's clock): the camera driver's send time.
     pub fn last_sent_ns(&self) -> Option<i64> {

@@ -117,6 +117,15 @@ pub const NODES: &[NodeSpec] = &[
         owns_hardware: false,
         commands_hardware: false,
     },
+    NodeSpec {
+        name: OPERATOR_DISPLAY,
+        site: Site::Local,
+        machine: "PC3",
+        config: "deploy/config/operator_display.toml",
+        role: "what the operator sees of the robot site: camera views (acknowledged, so they are paced to the WAN), feedback ages and rates",
+        owns_hardware: false,
+        commands_hardware: false,
+    },
 ];
 
 /// The operator-site node that publishes the wrist pose and the pedals
@@ -126,6 +135,10 @@ pub const WRIST_TRACKER: &str = "wrist_tracker";
 /// The operator-site node that publishes the finger targets
 /// ([`HAND_JOINT_TARGETS`](crate::topics::HAND_JOINT_TARGETS)).
 pub const HAND_INFERENCE: &str = "hand_inference";
+
+/// The operator-site node that receives the camera views and acknowledges them
+/// ([`REMOTE_CAMERA_RECEIPTS`](crate::topics::REMOTE_CAMERA_RECEIPTS)).
+pub const OPERATOR_DISPLAY: &str = "operator_display";
 
 /// The order to stop the nodes in: the nodes that command hardware first (their
 /// shutdown commands the robots to stop while their inputs are still alive), then the
@@ -180,7 +193,13 @@ mod tests {
         assert_eq!(find("remote_sim").map(|n| n.site), Some(Site::Remote));
         assert_eq!(
             of_site(Site::Local).collect::<Vec<_>>(),
-            ["local_sim", "wrist_tracker", "camera_arm", "hand_inference"]
+            [
+                "local_sim",
+                "wrist_tracker",
+                "camera_arm",
+                "hand_inference",
+                "operator_display"
+            ]
         );
         let stop: Vec<&str> = stop_order().map(|n| n.name).collect();
         assert_eq!(stop.len(), NODES.len());

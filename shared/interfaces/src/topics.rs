@@ -6,8 +6,8 @@
 use std::marker::PhantomData;
 
 use teleop_msgs::{
-    CompressedImage, FingertipPressures, Image, JointCommand, JointState, Message, NodeStatus,
-    OperatorInput, PoseStamped,
+    CompressedImage, FingertipPressures, Header, Image, JointCommand, JointState, Message,
+    NodeStatus, OperatorInput, PoseStamped,
 };
 
 /// Which way a topic crosses (or does not cross) between the two sites.
@@ -56,6 +56,10 @@ pub enum QosClass {
     State,
     /// Camera images: data-low priority, drop, newest only.
     Image,
+    /// Acknowledgements (the camera views' receipts): express, interactive priority,
+    /// drop, every sample kept (up to 16 queued: each one acknowledges its own view),
+    /// sequence order enforced.
+    Receipt,
     /// Diagnostics (node status): background priority, drop, last few kept.
     Diagnostics,
 }
@@ -66,24 +70,31 @@ impl QosClass {
             QosClass::Control => "control",
             QosClass::State => "state",
             QosClass::Image => "image",
+            QosClass::Receipt => "receipt",
             QosClass::Diagnostics => "diagnostics",
         }
     }
     /// Whether samples skip batching.
     pub fn express(self) -> bool {
-        matches!(self, QosClass::Control | QosClass::State)
+        matches!(
+            self,
+            QosClass::Control | QosClass::State | QosClass::Receipt
+        )
     }
     /// How many received samples a subscriber keeps before it drops the oldest.
     pub fn depth(self) -> usize {
         match self {
             QosClass::Control | QosClass::State | QosClass::Image => 1,
-            QosClass::Diagnostics => 16,
+            QosClass::Diagnostics | QosClass::Receipt => 16,
         }
     }
     /// Whether a subscriber drops samples that are not newer than the last accepted
     /// one from the same publisher.
     pub fn enforces_order(self) -> bool {
-        matches!(self, QosClass::Control | QosClass::State)
+        matches!(
+            self,
+            QosClass::Control | QosClass::State | QosClass::Receipt
+        )
     }
 }
 
@@ -268,6 +279,18 @@ pub const REMOTE_CAMERA_TOP: Topic<CompressedImage> = Topic::new(
 pub const REMOTE_CAMERA_SIDE: Topic<CompressedImage> = REMOTE_CAMERA_TOP.renamed(
     "teleop/remote_camera/side/image/compressed",
     "Side view of the robot's workspace (JPEG of the rgb8 camera image), rate-limited",
+);
+/// Receipts of the camera views: the operator's display answers each view it receives
+/// with the view's header, and the feedback publisher paces the views by the round trip
+/// (`teleop_remote_site::view_pacer`), so on a slow WAN they give way to the feedback.
+pub const REMOTE_CAMERA_RECEIPTS: Topic<Header> = Topic::new(
+    "teleop/remote_camera/receipts",
+    LocalToRemote,
+    30.0,
+    Q::Receipt,
+    None,
+    Publishers::Nodes(&["operator_display"]),
+    "The header (stamp, frame) of each camera view the operator's display received; paces the views so they give way to the feedback on a slow WAN",
 );
 /// Depth image of the operator's hand from the camera on the UR5, as its driver (or the
 /// operator-site simulator standing in for it) publishes it: stamped with the capture
@@ -464,6 +487,7 @@ pub const ALL: &[TopicSpec] = &[
     FINGERTIP_PRESSURES.spec,
     REMOTE_CAMERA_TOP.spec,
     REMOTE_CAMERA_SIDE.spec,
+    REMOTE_CAMERA_RECEIPTS.spec,
     HAND_DEPTH.spec,
     CAMERA_POSE.spec,
     UR5_JOINT_STATES.spec,

@@ -9,8 +9,10 @@ use std::io::Cursor;
 
 use crate::{CompressedImage, Image, encodings};
 
+/// Largest side of an image [`decode_rgb8`] accepts, pixels.
+pub const MAX_SIDE: u32 = 4096;
 /// Largest image [`decode_rgb8`] accepts, pixels (4096 x 4096).
-pub const MAX_PIXELS: u64 = 4096 * 4096;
+pub const MAX_PIXELS: u64 = MAX_SIDE as u64 * MAX_SIDE as u64;
 
 /// What went wrong turning an image into JPEG or back.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
@@ -78,8 +80,8 @@ pub fn decode_rgb8(compressed: &CompressedImage) -> Result<Image, ImageCodecErro
     let mut reader =
         image::io::Reader::with_format(Cursor::new(&compressed.data), image::ImageFormat::Jpeg);
     let mut limits = image::io::Limits::default();
-    limits.max_image_width = Some(4096);
-    limits.max_image_height = Some(4096);
+    limits.max_image_width = Some(MAX_SIDE);
+    limits.max_image_height = Some(MAX_SIDE);
     limits.max_alloc = Some(MAX_PIXELS * 4);
     reader.limits(limits);
     let decoded = reader.decode().map_err(|e| match e {

@@ -406,9 +406,8 @@ impl CompressedImage {
     pub fn codec(&self) -> Option<&'static str> {
         let f = self.format.to_ascii_lowercase();
         ["jpeg", "png"].into_iter().find(|c| {
-            f == *c
-                || f.split(|ch: char| ch == ';' || ch.is_whitespace())
-                    .any(|w| w == *c)
+            f.split(|ch: char| ch == ';' || ch.is_whitespace())
+                .any(|w| w == *c)
         })
     }
 }

@@ -426,6 +426,7 @@ mod tests {
             [
                 "*/teleop/hand/joint_targets/*/*",
                 "*/teleop/operator_input/*/*",
+                "*/teleop/remote_camera/receipts/*/*",
                 "*/teleop/status/*/*",
                 "*/teleop/wrist_pose/*/*",
             ]

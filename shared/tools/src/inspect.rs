@@ -9,8 +9,8 @@ use teleop_bus::keys::{EntityKind, GraphEntity};
 use teleop_bus::{Bus, BusConfig, SourcePolicy, StatsSnapshot, Subscriber};
 use teleop_interfaces::topics::{self, Topic, TopicSpec};
 use teleop_msgs::{
-    CompressedImage, FingertipPressures, Image, JointCommand, JointState, Message, NodeStatus,
-    OperatorInput, PoseStamped,
+    CompressedImage, FingertipPressures, Header, Image, JointCommand, JointState, Message,
+    NodeStatus, OperatorInput, PoseStamped,
 };
 
 /// Output format of `topic echo`.
@@ -47,6 +47,7 @@ macro_rules! dispatch {
             t if t == CompressedImage::TYPE_NAME => $f::<CompressedImage>($($args),*).await,
             t if t == JointCommand::TYPE_NAME => $f::<JointCommand>($($args),*).await,
             t if t == NodeStatus::TYPE_NAME => $f::<NodeStatus>($($args),*).await,
+            t if t == Header::TYPE_NAME => $f::<Header>($($args),*).await,
             other => bail!("no decoder for type {other}"),
         }
     }};

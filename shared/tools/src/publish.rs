@@ -10,8 +10,8 @@ use teleop_bus::{Attachment, Bus, BusConfig};
 use teleop_interfaces::topics::{self, Topic, TopicSpec};
 use teleop_msgs::description::{Arity, BaseType, MsgDescription};
 use teleop_msgs::{
-    CompressedImage, FingertipPressures, Image, JointCommand, JointState, Message, NodeStatus,
-    OperatorInput, PoseStamped,
+    CompressedImage, FingertipPressures, Header, Image, JointCommand, JointState, Message,
+    NodeStatus, OperatorInput, PoseStamped,
 };
 
 #[derive(Debug, Clone, clap::Args)]
@@ -259,6 +259,7 @@ pub async fn run(cfg: &BusConfig, args: &PubArgs) -> anyhow::Result<()> {
         t if t == NodeStatus::TYPE_NAME => {
             publish_typed::<NodeStatus>(&bus, spec, args, &texts).await
         }
+        t if t == Header::TYPE_NAME => publish_typed::<Header>(&bus, spec, args, &texts).await,
         other => bail!("no encoder for type {other}"),
     }?;
     eprintln!("published {sent} samples on /{} as {name}", spec.name);

@@ -34,10 +34,12 @@ const ARM_ACTIVE_AFTER_POSE_S: f64 = 0.1 + 0.05;
 /// The same for the hand: its command timeout (`command_timeout_s`, 0.2 s) + 0.05 s.
 const HAND_ACTIVE_AFTER_TARGETS_S: f64 = 0.2 + 0.05;
 /// The smallest bandwidth cap under which the camera views must give way to the
-/// feedback: above what the feedback topics need on their own (about 0.3 Mbit/s,
-/// docs/network.md). Below the two JPEG views' 1.8 Mbit/s (both are taken at the
-/// operator's LAN), something must be dropped, and it must be views.
-const GIVE_WAY_MIN_MBIT: f64 = 1.0;
+/// feedback: above what the feedback topics need on their own, about 1.1 Mbit/s (each
+/// 10 ms a PR2 state of 316 bytes, a Shadow state of about 660, the pressures, each with
+/// its attachment, Zenoh's and TLS's framing: docs/network.md; at 1 Mbit/s the feedback
+/// was late with the views paced down to 0.8 Hz). Below the two JPEG views' 1.8 Mbit/s
+/// plus that, something must be dropped, and it must be views.
+const GIVE_WAY_MIN_MBIT: f64 = 2.0;
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct SweepArgs {

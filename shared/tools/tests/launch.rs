@@ -98,6 +98,9 @@ fn launch_runs_the_system_and_stops_it_gracefully_with_a_summary() {
     assert_eq!(state("hand_inference"), "Active", "{stdout}");
     assert_eq!(state("remote_sim"), "Active", "{stdout}");
     assert_eq!(state("local_sim"), "Active", "{stdout}");
+    // The operator display saw the robot site's feedback, and the camera views it
+    // acknowledged were all it was sent, paced by its receipts.
+    assert_eq!(state("operator_display"), "Active", "{stdout}");
     assert!(stdout.contains("arm.engagements=1"), "{stdout}");
     assert!(stdout.contains("hand.engagements=1"), "{stdout}");
     assert!(
@@ -111,7 +114,7 @@ fn launch_runs_the_system_and_stops_it_gracefully_with_a_summary() {
         .find(|l| l.starts_with("publishers vs the topic table"))
         .unwrap_or_else(|| panic!("no publisher check:\n{stdout}"));
     assert!(
-        check.contains("are in the table") && check.contains("of the 8 running nodes"),
+        check.contains("are in the table") && check.contains("of the 9 running nodes"),
         "{check}"
     );
 }
