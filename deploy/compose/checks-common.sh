@@ -5,8 +5,13 @@
 IMAGE=${TELEOP_IMAGE:-teleop:local}
 if docker compose version >/dev/null 2>&1; then COMPOSE=(docker compose); else COMPOSE=(docker-compose); fi
 compose() { "${COMPOSE[@]}" -f "$HERE/docker-compose.yml" "$@"; }
+# A service's running container, found by compose's labels with the docker client:
+# docker-compose v1 (Python) takes about a second of CPU to start, and on a 2-core
+# machine that stall, right before a timed cut, stopped the arm before the cut came.
+service_id() { docker ps -q --filter "label=com.docker.compose.project=$COMPOSE_PROJECT_NAME" \
+  --filter "label=com.docker.compose.service=$1" | head -1; }
 # The WAN link emulator's control port (wan_link ctl): set, partition, reset, show.
-link() { compose exec -T wan-link wan_link ctl --control 127.0.0.1:7500 "$@"; }
+link() { docker exec -i "$(service_id wan-link)" wan_link ctl --control 127.0.0.1:7500 "$@"; }
 
 # A listener on a site LAN as the observer identity: `teleop topic echo` of each topic
 # given, as JSON lines, into $OUT/<tag>-<topic-dir>-<topic-name>.jsonl (OUT set by
