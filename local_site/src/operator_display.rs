@@ -3,7 +3,8 @@
 //! robot site, received, checked and accounted for.
 //!
 //! * The two camera views ([`topics::REMOTE_CAMERA_TOP`], [`topics::REMOTE_CAMERA_SIDE`],
-//!   JPEG): each view received is checked (a JPEG, within the size limits) and answered
+//!   JPEG): each view received is checked (its format names JPEG, its data starts
+//!   with JPEG's start-of-image marker; the pixels are not decoded) and answered
 //!   at once with a receipt, the view's header ([`topics::REMOTE_CAMERA_RECEIPTS`]): the
 //!   feedback publisher paces the views by the receipts' round trip, so on a slow WAN
 //!   they give way to the feedback (`teleop_remote_site::view_pacer`).
