@@ -7,11 +7,13 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use nalgebra::SVector;
-use teleop_bus::{Bus, Clock, ManualClock};
+use teleop_bus::{Bus, Clock, ManualClock, Publisher, Subscriber};
 use teleop_hardware::{ArmState, wire};
 use teleop_interfaces::joints::PR2_ARM_JOINTS;
 use teleop_interfaces::topics;
-use teleop_msgs::{Header, Lifecycle, OperatorInput, Point, Pose, PoseStamped, Quaternion, Time};
+use teleop_msgs::{
+    Header, JointState, Lifecycle, OperatorInput, Point, Pose, PoseStamped, Quaternion, Time,
+};
 use teleop_node::Node;
 use teleop_remote_site::arm_node::{ArmNode, ArmNodeConfig};
 use teleop_sim::WORKING_POSTURE_RAD;
@@ -19,43 +21,60 @@ use teleop_system_tests::{free_port, isolated_pair};
 
 const DT: f64 = 1.0 / 30.0;
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn the_arm_node_stops_on_scripted_time() {
-    let clock = ManualClock::starting_at(1_000_000.0);
-    let shared: Arc<dyn Clock> = clock.clone();
-    let (hub, spoke) = isolated_pair(26, free_port().unwrap());
-    let bus = Bus::open_with_clock("pr2_arm_controller", &hub, shared.clone())
-        .await
-        .unwrap();
-    let cfg = ArmNodeConfig::default();
-    let mut node = ArmNode::new(&cfg, &bus).await.unwrap();
-    // The operator site and the arm's hardware, on the same scripted clock.
-    let peer = Bus::open_with_clock("wrist_tracker", &spoke, shared)
-        .await
-        .unwrap();
-    let state_pub = peer.publisher(&topics::HW_PR2_ARM_STATE).await.unwrap();
-    let pose_pub = peer.publisher(&topics::WRIST_POSE).await.unwrap();
-    let input_pub = peer.publisher(&topics::OPERATOR_INPUT).await.unwrap();
-    let commands = peer.subscriber(&topics::HW_PR2_ARM_COMMAND).await.unwrap();
-    let q = SVector::<f64, 7>::from(WORKING_POSTURE_RAD);
-    let stamp = |t: f64| Time::from_nanos((t * 1e9) as i64);
-    // One scripted period: the peer publishes what it is told, the messages arrive
-    // (real time), the clock moves by one period, the node ticks.
-    let period = |t: f64, pose_x: Option<f64>, input: bool, clutch: bool| {
-        state_pub
+/// The operator site and the arm's hardware as one scripted peer, on the node's clock.
+struct Script {
+    clock: Arc<ManualClock>,
+    /// The node's bus and the peer's, open as long as the script.
+    _buses: (Bus, Bus),
+    state_pub: Publisher<JointState>,
+    pose_pub: Publisher<PoseStamped>,
+    input_pub: Publisher<OperatorInput>,
+    commands: Subscriber<JointState>,
+}
+
+impl Script {
+    /// The arm node (with `cfg`) on a scripted clock, and its peer.
+    async fn start(cfg: &ArmNodeConfig, domain: u32) -> (ArmNode, Self, teleop_bus::BusConfig) {
+        let clock = ManualClock::starting_at(1_000_000.0);
+        let shared: Arc<dyn Clock> = clock.clone();
+        let (hub, spoke) = isolated_pair(domain, free_port().unwrap());
+        let bus = Bus::open_with_clock("pr2_arm_controller", &hub, shared.clone())
+            .await
+            .unwrap();
+        let node = ArmNode::new(cfg, &bus).await.unwrap();
+        let peer = Bus::open_with_clock("wrist_tracker", &spoke, shared)
+            .await
+            .unwrap();
+        let script = Self {
+            clock,
+            state_pub: peer.publisher(&topics::HW_PR2_ARM_STATE).await.unwrap(),
+            pose_pub: peer.publisher(&topics::WRIST_POSE).await.unwrap(),
+            input_pub: peer.publisher(&topics::OPERATOR_INPUT).await.unwrap(),
+            commands: peer.subscriber(&topics::HW_PR2_ARM_COMMAND).await.unwrap(),
+            _buses: (bus, peer),
+        };
+        (node, script, spoke)
+    }
+
+    /// One scripted period: the peer publishes what it is told (the arm at rest in the
+    /// working posture, a wrist pose at `pose_x`, the pedals).
+    fn period(&self, pose_x: Option<f64>, input: bool, clutch: bool) {
+        let t = self.clock.now_s();
+        let stamp = Time::from_nanos((t * 1e9) as i64);
+        self.state_pub
             .put(&wire::arm_state_msg(
                 &PR2_ARM_JOINTS,
                 &ArmState {
                     time_s: t,
-                    position_rad: q,
+                    position_rad: SVector::<f64, 7>::from(WORKING_POSTURE_RAD),
                     velocity_rad_s: SVector::zeros(),
                 },
             ))
             .unwrap();
         if let Some(x) = pose_x {
-            pose_pub
+            self.pose_pub
                 .put(&PoseStamped {
-                    header: Header::new(stamp(t), "tracker"),
+                    header: Header::new(stamp, "tracker"),
                     pose: Pose {
                         position: Point { x, y: 0.0, z: 1.0 },
                         orientation: Quaternion {
@@ -69,9 +88,9 @@ async fn the_arm_node_stops_on_scripted_time() {
                 .unwrap();
         }
         if input {
-            input_pub
+            self.input_pub
                 .put(&OperatorInput {
-                    header: Header::new(stamp(t), ""),
+                    header: Header::new(stamp, ""),
                     clutch,
                     enable: true,
                     camera_stop: false,
@@ -79,48 +98,75 @@ async fn the_arm_node_stops_on_scripted_time() {
                 })
                 .unwrap();
         }
-    };
-    // Discovery (real time), with the scripted clock standing still; the operator
-    // presses the clutch once the node has heard it released (a node does not take a
-    // clutch held since before it heard it for a press).
-    for _ in 0..100 {
-        let clutch = node.controller().armed();
-        period(clock.now_s(), Some(0.4), true, clutch);
-        tokio::time::sleep(Duration::from_millis(20)).await;
-        node.tick(clock.now_s());
-        if node.state() == Lifecycle::Active {
-            break;
-        }
     }
-    assert_eq!(node.state(), Lifecycle::Active, "the arm engaged");
+
+    /// Discovery (real time), with the scripted clock standing still; the operator
+    /// lets go of the clutch and presses it once the node has heard it released (a node
+    /// does not take a clutch held since before it heard it for a press). Whether the
+    /// arm engaged.
+    async fn engage(&self, node: &mut ArmNode) -> bool {
+        for i in 0..100 {
+            let clutch = i >= 3 && node.controller().armed();
+            self.period(Some(0.4), true, clutch);
+            tokio::time::sleep(Duration::from_millis(20)).await;
+            node.tick(self.clock.now_s());
+            if node.state() == Lifecycle::Active {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// Moves the operator's hand 1 cm along x per period for `n` periods (clutch held);
+    /// whether the node commanded motion.
+    async fn follow(&self, node: &mut ArmNode, x: &mut f64, n: usize) -> bool {
+        let mut moving = false;
+        for _ in 0..n {
+            self.clock.advance_s(DT);
+            *x += 0.01;
+            self.period(Some(*x), true, true);
+            tokio::time::sleep(Duration::from_millis(15)).await;
+            node.tick(self.clock.now_s());
+            while let Some(c) = self.commands.try_recv() {
+                let v = wire::arm_command(&PR2_ARM_JOINTS, &c.msg).unwrap();
+                moving |= v.velocity_rad_s.amax() > 1e-3;
+            }
+        }
+        moving
+    }
+}
+
+fn counter(node: &ArmNode, name: &str) -> u64 {
+    node.counters()
+        .iter()
+        .find(|(n, _)| n == name)
+        .map_or(0, |(_, v)| *v)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_arm_node_stops_on_scripted_time() {
+    let (mut node, script, _) = Script::start(&ArmNodeConfig::default(), 26).await;
+    let clock = &script.clock;
+    assert!(script.engage(&mut node).await, "the arm engaged");
     // Engaged: the operator moves 1 cm per period along x; the node commands motion.
     let mut x = 0.4;
-    let mut moving = false;
-    for _ in 0..10 {
-        clock.advance_s(DT);
-        x += 0.01;
-        period(clock.now_s(), Some(x), true, true);
-        tokio::time::sleep(Duration::from_millis(15)).await;
-        node.tick(clock.now_s());
-        while let Some(c) = commands.try_recv() {
-            let v = wire::arm_command(&PR2_ARM_JOINTS, &c.msg).unwrap();
-            moving |= v.velocity_rad_s.amax() > 1e-3;
-        }
-    }
-    assert!(moving, "the node commands motion while engaged");
+    assert!(
+        script.follow(&mut node, &mut x, 10).await,
+        "the node commands motion while engaged"
+    );
     // The wrist poses stop; pedals and state keep coming. The 0.1 s pose deadline, in
     // scripted time: still engaged up to 0.1 s, stopped in the period after.
     let t_last_pose = clock.now_s();
     let mut stopped_at = None;
     for _ in 0..6 {
         clock.advance_s(DT);
-        period(clock.now_s(), None, true, true);
+        script.period(None, true, true);
         tokio::time::sleep(Duration::from_millis(15)).await;
         node.tick(clock.now_s());
         // The command reaches the hardware (real time).
         tokio::time::sleep(Duration::from_millis(15)).await;
         let mut last = None;
-        while let Some(c) = commands.try_recv() {
+        while let Some(c) = script.commands.try_recv() {
             last = Some(wire::arm_command(&PR2_ARM_JOINTS, &c.msg).unwrap());
         }
         if stopped_at.is_none() && last.is_some_and(|c| c.velocity_rad_s.amax() == 0.0) {
@@ -137,13 +183,7 @@ async fn the_arm_node_stops_on_scripted_time() {
         Lifecycle::Fault,
         "a latched safety stop is a fault"
     );
-    let counters = node.counters();
-    let stops = counters
-        .iter()
-        .find(|(n, _)| n == "arm.stop.stale_wrist_pose")
-        .unwrap()
-        .1;
-    assert_eq!(stops, 1);
+    assert_eq!(counter(&node, "arm.stop.stale_wrist_pose"), 1);
     // Ten scripted seconds pass with nothing from the hardware: the state counts as
     // lost (a fault) and the node commands a stop.
     clock.advance_s(10.0);
@@ -153,5 +193,58 @@ async fn the_arm_node_stops_on_scripted_time() {
         node.last_error().contains("no state received"),
         "{}",
         node.last_error()
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_arm_moves_only_while_the_hand_has_a_controller() {
+    // A hand-arm config: the arm names the Shadow hand's controller.
+    let cfg = ArmNodeConfig {
+        hand_controller_nodes: vec!["shadow_hand_controller".into()],
+        ..ArmNodeConfig::default()
+    };
+    let (mut node, script, spoke) = Script::start(&cfg, 27).await;
+    // No hand controller on the bus: the operator presses, the arm does not engage.
+    assert!(
+        !script.engage(&mut node).await,
+        "engaged without a hand controller"
+    );
+    assert!(counter(&node, "arm.stop.hand_controller_lost") >= 1);
+    // The hand's controller appears (its liveliness token, with the node's name).
+    let hand = Bus::open_with_clock("shadow_hand_controller", &spoke, script.clock.clone())
+        .await
+        .unwrap();
+    assert!(
+        script.engage(&mut node).await,
+        "the arm engaged with the hand controlled"
+    );
+    let mut x = 0.4;
+    assert!(script.follow(&mut node, &mut x, 5).await, "the arm follows");
+    // The hand's controller goes (a crash: its session closes): the arm stops and
+    // latches while the operator goes on moving.
+    drop(hand);
+    let mut stopped = false;
+    for _ in 0..100 {
+        if !script.follow(&mut node, &mut x, 1).await && node.state() != Lifecycle::Active {
+            stopped = true;
+            break;
+        }
+    }
+    assert!(stopped, "the arm stopped without the hand's controller");
+    assert_eq!(node.state(), Lifecycle::Fault, "a latched safety stop");
+    assert_eq!(counter(&node, "arm.stop.hand_controller_lost"), 2);
+    // It comes back; the clutch is still held: no motion until a fresh press.
+    let _hand = Bus::open_with_clock("shadow_hand_controller", &spoke, script.clock.clone())
+        .await
+        .unwrap();
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    assert!(
+        !script.follow(&mut node, &mut x, 10).await,
+        "moved on the held clutch"
+    );
+    assert_eq!(node.state(), Lifecycle::Fault);
+    assert!(
+        script.engage(&mut node).await,
+        "a fresh press engages again"
     );
 }

@@ -51,7 +51,10 @@ SERVICES = {
     "pc1-hand-inference": ("hand_inference", [("r-shadow_hand-state", "hold", False)]),
     "pc3-local-sim": ("local_sim", [("r-pr2_arm-state", "stop", True)]),
     "pc2-arm": ("pr2_arm_controller", [("r-pr2_arm-state", "stop", True)]),
-    "pc2-hand": ("shadow_hand_controller", [("r-shadow_hand-state", "stop", False)]),
+    # The arm stops too: its controller's hand_controller_nodes name the hand's (an arm
+    # that went on would drive the uncontrolled hand into the scene's objects).
+    "pc2-hand": ("shadow_hand_controller", [("r-shadow_hand-state", "stop", False),
+                                            ("r-pr2_arm-state", "stop", True)]),
     "pc2-feedback": ("feedback_publisher", []),
     "robot-sim": ("remote_sim", []),
     "local-router": ("site:local", [("r-pr2_arm-state", "stop", True)]),

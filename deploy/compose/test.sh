@@ -232,7 +232,22 @@ cut_test_judged() {
   return 1
 }
 cut_test_judged partition "link partition on" "link partition off" --released-late
-cut_test_judged pause "compose pause pc1-wrist-tracker" "compose unpause pc1-wrist-tracker"
+# The pause by the container's id with the engine's own command: Compose v1 spends about
+# a second of CPU before it pauses, and on 2 cores that stalled the wrist poses right
+# before the freeze, so the arm had stopped already and the cut could not be judged
+# (CI failed three tries so). The engine's freezer can refuse a process busy in the
+# file system ("unable to freeze"): the pause is tried again for up to a second.
+freeze() { # container-id
+  local try
+  for try in $(seq 20); do
+    docker pause "$1" >/dev/null 2>&1 && return 0
+    sleep 0.05
+  done
+  echo "compose test: docker pause $1 failed 20 times" >&2
+  return 1
+}
+tracker=$(service_id pc1-wrist-tracker)
+cut_test_judged pause "freeze $tracker" "docker unpause $tracker"
 
 # WAN conditions (delay, jitter, loss, bandwidth caps) through the link emulator, the
 # task once per condition: latencies, rates and the PR2 error, and the checks of the
@@ -243,15 +258,13 @@ if [[ $SWEEP != none ]]; then
 fi
 
 # Each container killed during a clutched motion and started again 2.5 s later: the
-# others keep running, its robots stop while it is gone, it is heard again within 1 s
-# (check_faults.sh; about 5 minutes). Not yet the two that drive the Shadow hand: the
-# arm, which the operator still moves, can drive the holding hand into the scene's
-# "mouse" and knock its fingers about, which the hand's stillness check counts
-# (docs/deployment.md). TELEOP_FAULT_SERVICES (space-separated) picks other containers.
+# others keep running, its robots stop while it is gone (the hand's controller gone:
+# the hand and the arm), it is heard again within 1 s (check_faults.sh, every node
+# container and both routers; about 6 minutes). TELEOP_FAULT_SERVICES (space-
+# separated) picks others.
 if [[ $FAULTS == 1 ]]; then
   # shellcheck disable=SC2086
-  bash "$HERE/check_faults.sh" ${TELEOP_FAULT_SERVICES:-pc1-wrist-tracker pc1-camera-arm \
-    pc3-local-sim pc2-arm pc2-feedback robot-sim local-router remote-router}
+  bash "$HERE/check_faults.sh" ${TELEOP_FAULT_SERVICES:-}
 fi
 
 # Security between the sites: who cannot connect, who cannot command, what the robot

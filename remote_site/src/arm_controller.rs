@@ -340,6 +340,9 @@ pub struct ArmInputs {
     pub wrist: Option<WristSample>,
     /// The operator site's nodes are alive (liveliness).
     pub operator_site_alive: bool,
+    /// The hand on the arm is under control: the hand controller's node is alive
+    /// (liveliness). Always `true` in an arm-only setup.
+    pub hand_controller_alive: bool,
     /// The wrist poses and the pedals come from different operator sites (the node
     /// checks the publishers' identities): the arm does not engage. An engaged arm keeps
     /// following the sources it locked onto.
@@ -360,6 +363,9 @@ pub enum StopReason {
     StaleWristPose,
     /// The operator site's liveliness is lost.
     OperatorSiteLost,
+    /// The hand controller's liveliness is lost: an arm does not carry a hand nobody
+    /// controls into the scene.
+    HandControllerLost,
     /// The motion scale is not in (0, 1].
     InvalidMotionScale,
     /// The measured arm state is not finite.
@@ -385,6 +391,7 @@ impl StopReason {
             StopReason::StaleOperatorInput => "stale_operator_input",
             StopReason::StaleWristPose => "stale_wrist_pose",
             StopReason::OperatorSiteLost => "operator_site_lost",
+            StopReason::HandControllerLost => "hand_controller_lost",
             StopReason::InvalidMotionScale => "invalid_motion_scale",
             StopReason::InvalidArmState => "invalid_arm_state",
             StopReason::AwaitingClutchRelease => "awaiting_clutch_release",
@@ -662,6 +669,9 @@ impl ArmController {
                 return self.stop(reason);
             }
         };
+        if !inputs.hand_controller_alive {
+            return self.stop(StopReason::HandControllerLost);
+        }
         // A latched safety stop, or a controller started while the operator held the
         // pedals: the operator must let go and press again.
         if self.latched.is_some() || !self.armed {

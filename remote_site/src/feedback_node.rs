@@ -277,12 +277,9 @@ impl FeedbackNode {
                 .cameras
                 .iter()
                 .position(|c| c.frame_id.as_deref() == Some(r.msg.frame_id.as_str()));
-            let outcome = match view {
-                Some(v) => self.pacer.receipt(now_s, v, r.msg.stamp.as_nanos()),
-                None => self
-                    .pacer
-                    .receipt(now_s, usize::MAX, r.msg.stamp.as_nanos()),
-            };
+            // A receipt for no camera of ours matches no view in flight: counted.
+            let view = view.unwrap_or(usize::MAX);
+            let outcome = self.pacer.receipt(now_s, view, r.msg.stamp.as_nanos());
             if let ReceiptOutcome::Acknowledged { rtt_s, queue_s } = outcome {
                 tracing::trace!(rtt_s, queue_s, "view acknowledged");
             }

@@ -233,15 +233,12 @@ impl ViewPacer {
             // The receiver (re)appears: start from the initial window.
             self.window_bytes = INITIAL_WINDOW_BYTES;
         }
-        let Some(i) = self
+        let Some(acked) = self
             .in_flight
             .iter()
             .position(|s| s.view == view && s.stamp_ns == stamp_ns)
+            .and_then(|i| self.in_flight.remove(i))
         else {
-            self.counters.unmatched += 1;
-            return ReceiptOutcome::Unmatched;
-        };
-        let Some(acked) = self.in_flight.remove(i) else {
             self.counters.unmatched += 1;
             return ReceiptOutcome::Unmatched;
         };

@@ -24,6 +24,7 @@ struct Rig {
     enable: bool,
     scale: f64,
     alive: bool,
+    hand_alive: bool,
     wrist: Isometry3<f64>,
     send_wrist: bool,
     last_wrist: Option<WristSample>,
@@ -57,6 +58,7 @@ impl Rig {
             enable: true,
             scale: 1.0,
             alive: true,
+            hand_alive: true,
             wrist: Isometry3::from_parts(
                 Translation3::new(0.4, -0.2, 1.0),
                 UnitQuaternion::from_euler_angles(0.1, 0.2, 0.3),
@@ -95,6 +97,7 @@ impl Rig {
             }),
             wrist: self.last_wrist,
             operator_site_alive: self.alive,
+            hand_controller_alive: self.hand_alive,
             commander_conflict: self.conflict,
         };
         let state = ArmState {
@@ -281,6 +284,43 @@ fn enable_released_and_site_lost_stop_in_the_same_period() {
     // Site back, clutch still held: stays stopped until a fresh press.
     r.alive = true;
     assert_eq!(r.step().stopped, Some(StopReason::AwaitingClutchRelease));
+}
+
+#[test]
+fn a_lost_hand_controller_stops_the_arm_until_a_fresh_press() {
+    // The hand on the arm has nobody controlling it: the arm stops in the same period,
+    // and stays stopped after the controller is back until the operator presses again.
+    let mut r = engaged_and_moving();
+    r.hand_alive = false;
+    let out = r.step();
+    assert_eq!(out.stopped, Some(StopReason::HandControllerLost));
+    assert_eq!(out.command.velocity_rad_s, SVector::<f64, 7>::zeros());
+    assert_eq!(r.ctrl.latched(), Some(StopReason::HandControllerLost));
+    r.hand_alive = true;
+    for _ in 0..5 {
+        r.wrist.translation.vector.x += 0.005;
+        assert_eq!(r.step().stopped, Some(StopReason::AwaitingClutchRelease));
+    }
+    r.clutch = false;
+    r.step();
+    r.clutch = true;
+    r.step();
+    assert!(r.ctrl.is_engaged(), "a fresh press engages again");
+    // Without a hand controller the arm does not engage either (nothing latches).
+    let mut r = engaged_and_moving();
+    r.clutch = false;
+    r.step();
+    r.hand_alive = false;
+    r.clutch = true;
+    assert_eq!(r.step().stopped, Some(StopReason::HandControllerLost));
+    assert!(!r.ctrl.is_engaged());
+    assert_eq!(r.ctrl.latched(), None);
+    r.hand_alive = true;
+    r.step();
+    assert!(
+        r.ctrl.is_engaged(),
+        "the press held while the hand came back engages"
+    );
 }
 
 #[test]
