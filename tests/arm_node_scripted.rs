@@ -145,7 +145,12 @@ fn counter(node: &ArmNode, name: &str) -> u64 {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_arm_node_stops_on_scripted_time() {
-    let (mut node, script, _) = Script::start(&ArmNodeConfig::default(), 26).await;
+    // The arm alone: no hand whose commanders it would wait for.
+    let cfg = ArmNodeConfig {
+        hand_nodes: Vec::new(),
+        ..ArmNodeConfig::default()
+    };
+    let (mut node, script, _) = Script::start(&cfg, 26).await;
     let clock = &script.clock;
     assert!(script.engage(&mut node).await, "the arm engaged");
     // Engaged: the operator moves 1 cm per period along x; the node commands motion.
@@ -198,9 +203,10 @@ async fn the_arm_node_stops_on_scripted_time() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_arm_moves_only_while_the_hand_has_a_controller() {
-    // A hand-arm config: the arm names the Shadow hand's controller.
+    // The arm waits for the Shadow hand's controller only here (by default for hand
+    // inference too).
     let cfg = ArmNodeConfig {
-        hand_controller_nodes: vec!["shadow_hand_controller".into()],
+        hand_nodes: vec!["shadow_hand_controller".into()],
         ..ArmNodeConfig::default()
     };
     let (mut node, script, spoke) = Script::start(&cfg, 27).await;
@@ -209,7 +215,7 @@ async fn the_arm_moves_only_while_the_hand_has_a_controller() {
         !script.engage(&mut node).await,
         "engaged without a hand controller"
     );
-    assert!(counter(&node, "arm.stop.hand_controller_lost") >= 1);
+    assert!(counter(&node, "arm.stop.hand_node_lost") >= 1);
     // The hand's controller appears (its liveliness token, with the node's name).
     let hand = Bus::open_with_clock("shadow_hand_controller", &spoke, script.clock.clone())
         .await
@@ -232,7 +238,7 @@ async fn the_arm_moves_only_while_the_hand_has_a_controller() {
     }
     assert!(stopped, "the arm stopped without the hand's controller");
     assert_eq!(node.state(), Lifecycle::Fault, "a latched safety stop");
-    assert_eq!(counter(&node, "arm.stop.hand_controller_lost"), 2);
+    assert_eq!(counter(&node, "arm.stop.hand_node_lost"), 2);
     // It comes back; the clutch is still held: no motion until a fresh press.
     let _hand = Bus::open_with_clock("shadow_hand_controller", &spoke, script.clock.clone())
         .await

@@ -205,6 +205,8 @@ async fn wrist_tracker_drives_the_simulated_pr2_arm_through_the_clutch() {
         ..Default::default()
     };
     let arm = ArmNodeConfig {
+        // The arm alone: no hand whose commanders it would wait for.
+        hand_nodes: Vec::new(),
         bus: spoke.clone(),
         ..Default::default()
     };
@@ -319,6 +321,8 @@ async fn a_second_operator_site_is_refused_and_reported_never_blended() {
     let poses = probe.subscriber(&topics::WRIST_POSE).await.unwrap();
     let status = probe.subscriber(&topics::NODE_STATUS).await.unwrap();
     let arm = ArmNodeConfig {
+        // The arm alone: no hand whose commanders it would wait for.
+        hand_nodes: Vec::new(),
         bus: spoke.clone(),
         ..Default::default()
     };

@@ -133,6 +133,8 @@ async fn the_pr2_follows_the_imu_suit_absolutely_and_stops_when_the_stream_ends(
     };
     sim.world.arm.initial_position_rad = q0;
     let arm = ArmNodeConfig {
+        // The arm alone: no hand whose commanders it would wait for.
+        hand_nodes: Vec::new(),
         bus: spoke.clone(),
         arm: ArmControllerConfig {
             mode: ArmMode::Absolute,
@@ -296,6 +298,8 @@ async fn absolute_mode_refuses_poses_in_another_frame() {
         ..Default::default()
     };
     let arm = ArmNodeConfig {
+        // The arm alone: no hand whose commanders it would wait for.
+        hand_nodes: Vec::new(),
         bus: spoke.clone(),
         arm: ArmControllerConfig {
             mode: ArmMode::Absolute,

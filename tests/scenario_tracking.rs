@@ -77,7 +77,7 @@ fn run(
         }),
         wrist: None,
         operator_site_alive: true,
-        hand_controller_alive: true,
+        hand_alive: true,
         commander_conflict: false,
     };
     let stopped = ctrl.step(0.0, &released, &arm.read(0.0).unwrap()).stopped;
@@ -102,7 +102,7 @@ fn run(
                 pose: human,
             }),
             operator_site_alive: true,
-            hand_controller_alive: true,
+            hand_alive: true,
             commander_conflict: false,
         };
         let out = ctrl.step(t, &inputs, &state);

@@ -238,6 +238,8 @@ async fn only_the_operator_site_commands_the_robot_and_bad_commands_are_refused_
     let sim_task = tokio::spawn(sim_node::run(sim, Some(Duration::from_secs(16))));
     tokio::time::sleep(Duration::from_millis(300)).await;
     let arm = ArmNodeConfig {
+        // The arm alone: no hand whose commanders it would wait for.
+        hand_nodes: Vec::new(),
         bus: client(remote_port, &dir, "pr2_arm_controller"),
         ..Default::default()
     };

@@ -29,10 +29,9 @@ MOVING_ABOVE_RAD_S = 0.03
 #   "hold": the Shadow hand controller holds the last posture (its targets' source is
 #           gone): the controller counts hand.hold.stale_target and the posture, each
 #           joint averaged over HOLD_WINDOW_S, drifts less than HOLD_DRIFT_RAD between
-#           the first and the last window. (Not a stillness check: the arm, which the
-#           operator still moves, can drive the holding hand into the scene's objects
-#           and knock its fingers about; 2026-12-04: 4-9 rad/s with 0.001 rad of
-#           drift, docs/deployment.md.)
+#           the first and the last window. (Not a stillness check: the fingers settle
+#           into the hold, and before the arm stopped too they were knocked about at
+#           4-9 rad/s with 0.001 rad of drift, docs/deployment.md.)
 #   "displacement": the listener's own router was the one killed, nothing is heard
 #           while it is gone: the arm before the kill against the arm once heard again.
 HOLD_WINDOW_S = 0.25
@@ -48,11 +47,13 @@ SERVICES = {
     "pc1-wrist-tracker": ("wrist_tracker", [("r-pr2_arm-state", "stop", True),
                                             ("l-ur5-state", "stop", True)]),
     "pc1-camera-arm": ("camera_arm", [("l-ur5-state", "stop", True)]),
-    "pc1-hand-inference": ("hand_inference", [("r-shadow_hand-state", "hold", False)]),
+    # The arm stops too when either of the hand's commanders is gone (the arm
+    # controller's hand_nodes): an arm that went on would carry the held hand into the
+    # scene's objects (a CI run of 2026-12-04: posture drift 0.79 rad).
+    "pc1-hand-inference": ("hand_inference", [("r-shadow_hand-state", "hold", False),
+                                              ("r-pr2_arm-state", "stop", True)]),
     "pc3-local-sim": ("local_sim", [("r-pr2_arm-state", "stop", True)]),
     "pc2-arm": ("pr2_arm_controller", [("r-pr2_arm-state", "stop", True)]),
-    # The arm stops too: its controller's hand_controller_nodes name the hand's (an arm
-    # that went on would drive the uncontrolled hand into the scene's objects).
     "pc2-hand": ("shadow_hand_controller", [("r-shadow_hand-state", "stop", False),
                                             ("r-pr2_arm-state", "stop", True)]),
     "pc2-feedback": ("feedback_publisher", []),

@@ -64,7 +64,7 @@ fn run(rate_hz: f64, steps: usize) {
         }),
         wrist: None,
         operator_site_alive: true,
-        hand_controller_alive: true,
+        hand_alive: true,
         commander_conflict: false,
     };
     let idle = ArmState {
@@ -96,7 +96,7 @@ fn run(rate_hz: f64, steps: usize) {
                 pose: wrist,
             }),
             operator_site_alive: true,
-            hand_controller_alive: true,
+            hand_alive: true,
             commander_conflict: false,
         };
         let state = ArmState {

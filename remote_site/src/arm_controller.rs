@@ -340,9 +340,9 @@ pub struct ArmInputs {
     pub wrist: Option<WristSample>,
     /// The operator site's nodes are alive (liveliness).
     pub operator_site_alive: bool,
-    /// The hand on the arm is under control: the hand controller's node is alive
-    /// (liveliness). Always `true` in an arm-only setup.
-    pub hand_controller_alive: bool,
+    /// The hand on the arm is commanded: its controller and the source of its targets
+    /// are alive (liveliness). Always `true` for an arm without a hand.
+    pub hand_alive: bool,
     /// The wrist poses and the pedals come from different operator sites (the node
     /// checks the publishers' identities): the arm does not engage. An engaged arm keeps
     /// following the sources it locked onto.
@@ -363,9 +363,10 @@ pub enum StopReason {
     StaleWristPose,
     /// The operator site's liveliness is lost.
     OperatorSiteLost,
-    /// The hand controller's liveliness is lost: an arm does not carry a hand nobody
-    /// controls into the scene.
-    HandControllerLost,
+    /// A node commanding the hand on the arm (its controller, the source of its
+    /// targets) lost its liveliness: an arm does not carry a hand nobody commands
+    /// into the scene.
+    HandNodeLost,
     /// The motion scale is not in (0, 1].
     InvalidMotionScale,
     /// The measured arm state is not finite.
@@ -391,7 +392,7 @@ impl StopReason {
             StopReason::StaleOperatorInput => "stale_operator_input",
             StopReason::StaleWristPose => "stale_wrist_pose",
             StopReason::OperatorSiteLost => "operator_site_lost",
-            StopReason::HandControllerLost => "hand_controller_lost",
+            StopReason::HandNodeLost => "hand_node_lost",
             StopReason::InvalidMotionScale => "invalid_motion_scale",
             StopReason::InvalidArmState => "invalid_arm_state",
             StopReason::AwaitingClutchRelease => "awaiting_clutch_release",
@@ -669,8 +670,8 @@ impl ArmController {
                 return self.stop(reason);
             }
         };
-        if !inputs.hand_controller_alive {
-            return self.stop(StopReason::HandControllerLost);
+        if !inputs.hand_alive {
+            return self.stop(StopReason::HandNodeLost);
         }
         // A latched safety stop, or a controller started while the operator held the
         // pedals: the operator must let go and press again.

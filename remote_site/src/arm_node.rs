@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use teleop_bus::{Bus, BusConfig, NodeWatch};
 use teleop_hardware::ArmHardware;
 use teleop_hardware_bus::BusArm;
-use teleop_interfaces::hardware::PR2_ARM;
+use teleop_interfaces::hardware::{PR2_ARM, SHADOW_HAND};
 use teleop_interfaces::{nodes, topics};
 use teleop_msgs::{Lifecycle, OperatorInput, PoseStamped};
 use teleop_node::source::{self, CommanderConfig};
@@ -28,12 +28,13 @@ pub struct ArmNodeConfig {
     /// the operator-site node it takes commands from, the wrist tracker (poses and
     /// pedals).
     pub operator_site_nodes: Vec<String>,
-    /// Nodes that control the hand on the arm (liveliness); while any of them is gone
-    /// the arm stops (a safety stop: a fresh clutch press after they are back), so the
-    /// operator cannot drive a hand nobody controls into the scene. The shipped
-    /// hand-arm configs name the Shadow hand's controller; empty (the default) for an
-    /// arm without a controlled hand.
-    pub hand_controller_nodes: Vec<String>,
+    /// Nodes that command the hand on the arm, on either site (liveliness): its
+    /// controller and the source of its targets. The arm moves only while every one
+    /// of them is alive; losing one is a safety stop (a fresh clutch press after it is
+    /// back), so the operator cannot carry a hand nobody commands into the scene.
+    /// Default: the Shadow hand's controller and hand inference; empty for an arm
+    /// without a hand.
+    pub hand_nodes: Vec<String>,
     /// The arm hardware's state counts as lost after this long, s.
     pub hardware_timeout_s: f64,
     /// One commanding operator site at a time.
@@ -47,7 +48,10 @@ impl Default for ArmNodeConfig {
         Self {
             node_name: PR2_ARM.controller_node.into(),
             operator_site_nodes: vec![nodes::WRIST_TRACKER.into()],
-            hand_controller_nodes: Vec::new(),
+            hand_nodes: vec![
+                SHADOW_HAND.controller_node.into(),
+                nodes::HAND_INFERENCE.into(),
+            ],
             hardware_timeout_s: 0.1,
             commander: CommanderConfig::default(),
             arm: ArmControllerConfig::default(),
@@ -62,12 +66,8 @@ impl NodeConfig for ArmNodeConfig {
     }
     fn validate(&self) -> Result<(), String> {
         check_controller_links(&self.operator_site_nodes, self.hardware_timeout_s)?;
-        if self
-            .hand_controller_nodes
-            .iter()
-            .any(|n| n.trim().is_empty())
-        {
-            return Err("hand_controller_nodes: a node name is empty".into());
+        if self.hand_nodes.iter().any(|n| n.trim().is_empty()) {
+            return Err("hand_nodes: a node name is empty".into());
         }
         self.commander.validate()?;
         self.arm.validate()
@@ -88,7 +88,7 @@ fn pose_is_finite(pose: &teleop_msgs::Pose) -> bool {
 #[derive(Debug)]
 pub struct ArmNode {
     operator_site_nodes: Vec<String>,
-    hand_controller_nodes: Vec<String>,
+    hand_nodes: Vec<String>,
     commander: CommanderConfig,
     wrist_sub: SourceLock<PoseStamped>,
     input_sub: SourceLock<OperatorInput>,
@@ -122,7 +122,7 @@ impl ArmNode {
         );
         Ok(Self {
             operator_site_nodes: cfg.operator_site_nodes.clone(),
-            hand_controller_nodes: cfg.hand_controller_nodes.clone(),
+            hand_nodes: cfg.hand_nodes.clone(),
             commander: cfg.commander,
             wrist_ages,
             wrist_sub: SourceLock::new(
@@ -224,10 +224,7 @@ impl Node for ArmNode {
             operator: self.operator,
             wrist: self.wrist,
             operator_site_alive: alive,
-            hand_controller_alive: self
-                .hand_controller_nodes
-                .iter()
-                .all(|n| self.watch.is_alive(n)),
+            hand_alive: self.hand_nodes.iter().all(|n| self.watch.is_alive(n)),
             commander_conflict,
         };
         let command = match self.hw.read(now_s) {

@@ -97,7 +97,7 @@ impl Rig {
             }),
             wrist: self.last_wrist,
             operator_site_alive: self.alive,
-            hand_controller_alive: self.hand_alive,
+            hand_alive: self.hand_alive,
             commander_conflict: self.conflict,
         };
         let state = ArmState {
@@ -293,9 +293,9 @@ fn a_lost_hand_controller_stops_the_arm_until_a_fresh_press() {
     let mut r = engaged_and_moving();
     r.hand_alive = false;
     let out = r.step();
-    assert_eq!(out.stopped, Some(StopReason::HandControllerLost));
+    assert_eq!(out.stopped, Some(StopReason::HandNodeLost));
     assert_eq!(out.command.velocity_rad_s, SVector::<f64, 7>::zeros());
-    assert_eq!(r.ctrl.latched(), Some(StopReason::HandControllerLost));
+    assert_eq!(r.ctrl.latched(), Some(StopReason::HandNodeLost));
     r.hand_alive = true;
     for _ in 0..5 {
         r.wrist.translation.vector.x += 0.005;
@@ -312,7 +312,7 @@ fn a_lost_hand_controller_stops_the_arm_until_a_fresh_press() {
     r.step();
     r.hand_alive = false;
     r.clutch = true;
-    assert_eq!(r.step().stopped, Some(StopReason::HandControllerLost));
+    assert_eq!(r.step().stopped, Some(StopReason::HandNodeLost));
     assert!(!r.ctrl.is_engaged());
     assert_eq!(r.ctrl.latched(), None);
     r.hand_alive = true;
