@@ -29,8 +29,8 @@ pub use clock::{Clock, ManualClock, ScaledClock, SystemClock};
 pub use config::{BusConfig, Mode, TimeScale, TlsSettings, ZenohSettings};
 pub use directory::{PublisherDirectory, PublisherInfo};
 pub use session::{
-    Bus, BusError, NodeEvent, NodeWatch, Publisher, Received, SeenPublisher, SourcePolicy,
-    Subscriber, priority,
+    Bus, BusError, NodeEvent, NodeWatch, Publisher, RawPublisher, RawSample, Received,
+    SeenPublisher, SourcePolicy, Subscriber, Tap, priority,
 };
 pub use stats::StatsSnapshot;
 /// Wakes a node when a sample arrives ([`Subscriber::wake_on_sample`]).

@@ -58,6 +58,8 @@ pub enum BusError {
     NodeName(String),
     #[error("bus clock: {0}")]
     Clock(String),
+    #[error("topic type `{0}` is none of the message types")]
+    UnknownType(String),
 }
 
 fn zerr(what: impl Into<String>) -> impl FnOnce(zenoh::Error) -> BusError {
@@ -227,7 +229,60 @@ impl Bus {
     /// [`BusError::Zenoh`] if Zenoh refuses the declaration.
     pub async fn publisher<T: Message>(&self, topic: &Topic<T>) -> Result<Publisher<T>, BusError> {
         let spec = topic.spec;
-        let key = keys::data_key::<T>(self.config.domain_id, spec.name);
+        let (inner, key, gid, token) = self
+            .declare_publisher(&spec, T::description().dds_type_name())
+            .await?;
+        Ok(Publisher {
+            inner,
+            spec,
+            key,
+            gid,
+            sequence: AtomicI64::new(0),
+            clock: Arc::clone(&self.clock),
+            _token: token,
+            _type: PhantomData,
+        })
+    }
+
+    /// A publisher of `spec`'s topic that sends CDR bytes as they are (a replay, a
+    /// bridge): each sample gets a fresh attachment (this publisher's GID, the next
+    /// sequence number, now on the bus clock), so receivers check it like any other.
+    ///
+    /// # Errors
+    /// [`BusError::Zenoh`] if Zenoh refuses the declaration; [`BusError::UnknownType`]
+    /// if the topic's type is none of the message types.
+    pub async fn raw_publisher(&self, spec: &TopicSpec) -> Result<RawPublisher, BusError> {
+        let description = teleop_msgs::description_of(spec.type_name)
+            .ok_or_else(|| BusError::UnknownType(spec.type_name.to_owned()))?;
+        let (inner, key, gid, token) = self
+            .declare_publisher(spec, description.dds_type_name())
+            .await?;
+        Ok(RawPublisher {
+            inner,
+            key,
+            gid,
+            sequence: AtomicI64::new(0),
+            clock: Arc::clone(&self.clock),
+            _token: token,
+        })
+    }
+
+    /// Declares a publisher and its liveliness token; returns them with the key and
+    /// the publisher's GID.
+    async fn declare_publisher(
+        &self,
+        spec: &TopicSpec,
+        dds_type: String,
+    ) -> Result<
+        (
+            zenoh::pubsub::Publisher<'static>,
+            String,
+            [u8; 16],
+            LivelinessToken,
+        ),
+        BusError,
+    > {
+        let key = keys::data_key_raw(self.config.domain_id, spec.name, &dds_type, spec.type_hash);
         let inner = self
             .session
             .declare_publisher(key.clone())
@@ -236,11 +291,7 @@ impl Bus {
             .express(spec.qos.express())
             .await
             .map_err(zerr(format!("declare publisher {key}")))?;
-        let entity = self.entity(
-            EntityKind::Publisher,
-            &spec,
-            T::description().dds_type_name(),
-        );
+        let entity = self.entity(EntityKind::Publisher, spec, dds_type);
         let token_key = keys::liveliness_key(&entity, &keys::qos_string(false, spec.qos.depth()));
         let token = self
             .session
@@ -248,16 +299,7 @@ impl Bus {
             .declare_token(token_key.clone())
             .await
             .map_err(zerr(format!("declare publisher token {key}")))?;
-        Ok(Publisher {
-            inner,
-            spec,
-            key,
-            gid: gid_for_token(&token_key),
-            sequence: AtomicI64::new(0),
-            clock: Arc::clone(&self.clock),
-            _token: token,
-            _type: PhantomData,
-        })
+        Ok((inner, key, gid_for_token(&token_key), token))
     }
 
     /// Receive-guard settings for `spec` under this node's configuration.
@@ -344,25 +386,72 @@ impl Bus {
             })
             .await
             .map_err(zerr(format!("declare subscriber {key}")))?;
-        let entity = self.entity(
-            EntityKind::Subscriber,
-            &spec,
-            T::description().dds_type_name(),
-        );
         let token = self
+            .subscriber_token(&spec, T::description().dds_type_name(), &key)
+            .await?;
+        Ok(Subscriber {
+            shared,
+            _inner: inner,
+            _token: token,
+        })
+    }
+
+    /// Taps `spec`'s topic: every sample as it came off the wire goes to `sink` (called
+    /// on Zenoh's thread: keep it short, hand the sample on), with no guard, no decoding
+    /// and no copy kept. For recorders and bridges that store or forward the CDR bytes
+    /// untouched. Announced in the graph as a subscriber, like any other.
+    ///
+    /// # Errors
+    /// [`BusError::Zenoh`] if Zenoh refuses the declaration; [`BusError::UnknownType`]
+    /// if the topic's type is none of the message types.
+    pub async fn tap(
+        &self,
+        spec: &TopicSpec,
+        sink: impl Fn(RawSample) + Send + Sync + 'static,
+    ) -> Result<Tap, BusError> {
+        let description = teleop_msgs::description_of(spec.type_name)
+            .ok_or_else(|| BusError::UnknownType(spec.type_name.to_owned()))?;
+        let dds_type = description.dds_type_name();
+        let key = keys::data_key_raw(self.config.domain_id, spec.name, &dds_type, spec.type_hash);
+        let clock = Arc::clone(&self.clock);
+        let inner = self
             .session
+            .declare_subscriber(key.clone())
+            .callback(move |sample: zenoh::sample::Sample| {
+                let attachment = sample
+                    .attachment()
+                    .and_then(|a| Attachment::from_bytes(&a.to_bytes()).ok());
+                sink(RawSample {
+                    payload: sample.payload().to_bytes().into_owned(),
+                    attachment,
+                    received_ns: clock.now_ns(),
+                });
+            })
+            .await
+            .map_err(zerr(format!("declare tap {key}")))?;
+        let token = self.subscriber_token(spec, dds_type, &key).await?;
+        Ok(Tap {
+            _inner: inner,
+            _token: token,
+        })
+    }
+
+    /// Announces a subscriber of `spec`'s topic in the graph (its liveliness token).
+    async fn subscriber_token(
+        &self,
+        spec: &TopicSpec,
+        dds_type: String,
+        key: &str,
+    ) -> Result<LivelinessToken, BusError> {
+        let entity = self.entity(EntityKind::Subscriber, spec, dds_type);
+        self.session
             .liveliness()
             .declare_token(keys::liveliness_key(
                 &entity,
                 &keys::qos_string(false, spec.qos.depth()),
             ))
             .await
-            .map_err(zerr(format!("declare subscriber token {key}")))?;
-        Ok(Subscriber {
-            shared,
-            _inner: inner,
-            _token: token,
-        })
+            .map_err(zerr(format!("declare subscriber token {key}")))
     }
 
     /// Every entity currently announced in this domain (nodes, publishers, subscribers,
@@ -440,6 +529,44 @@ impl Bus {
         drop(_node_token);
         drop(_directory_sub);
         session.close().await.map_err(zerr("close session"))
+    }
+}
+
+/// A publisher of CDR bytes as they are ([`Bus::raw_publisher`]).
+pub struct RawPublisher {
+    inner: zenoh::pubsub::Publisher<'static>,
+    key: String,
+    gid: [u8; 16],
+    sequence: AtomicI64,
+    clock: Arc<dyn Clock>,
+    _token: LivelinessToken,
+}
+
+impl std::fmt::Debug for RawPublisher {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RawPublisher")
+            .field("key", &self.key)
+            .finish()
+    }
+}
+
+impl RawPublisher {
+    /// Publishes `payload` (CDR, encapsulation header included) now, with the next
+    /// sequence number (non-blocking: congestion drops the sample).
+    ///
+    /// # Errors
+    /// Zenoh errors.
+    pub fn put(&self, payload: Vec<u8>) -> Result<(), BusError> {
+        let att = Attachment {
+            sequence: self.sequence.fetch_add(1, Ordering::Relaxed) + 1,
+            source_timestamp_ns: self.clock.now_ns(),
+            gid: self.gid,
+        };
+        self.inner
+            .put(payload)
+            .attachment(att.to_bytes().to_vec())
+            .wait()
+            .map_err(zerr(format!("put on {}", self.key)))
     }
 }
 
@@ -772,6 +899,27 @@ impl<T: Message> Shared<T> {
 }
 
 /// Typed subscriber. Holds the newest accepted sample(s) until taken.
+/// One sample as it came off the wire ([`Bus::tap`]): the CDR payload untouched, its
+/// attachment (`None` if absent or malformed), when it arrived (bus clock, ns).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawSample {
+    pub payload: Vec<u8>,
+    pub attachment: Option<Attachment>,
+    pub received_ns: i64,
+}
+
+/// A raw subscription ([`Bus::tap`]); dropping it ends it.
+pub struct Tap {
+    _inner: zenoh::pubsub::Subscriber<()>,
+    _token: LivelinessToken,
+}
+
+impl std::fmt::Debug for Tap {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Tap").finish_non_exhaustive()
+    }
+}
+
 pub struct Subscriber<T> {
     shared: Arc<Shared<T>>,
     _inner: zenoh::pubsub::Subscriber<()>,

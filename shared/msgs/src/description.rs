@@ -218,6 +218,58 @@ impl MsgDescription {
     }
 }
 
+impl MsgDescription {
+    /// The type's definition as its package ships it: the project's own types from
+    /// their `.msg` files (comments, constants and defaults included), the standard
+    /// ones from their fields ([`MsgDescription::msg_text`]).
+    pub fn definition(&self) -> String {
+        match PROJECT_MSG_FILES.iter().find(|(n, _)| *n == self.type_name) {
+            Some((_, text)) => (*text).to_owned(),
+            None => self.msg_text(),
+        }
+    }
+
+    /// The full definition rosbag2 stores in MCAP (`ros2msg` schema encoding) and
+    /// ROS 1 bags stored before it: this type's definition, then for each type it
+    /// refers to, a line of 80 `=`, `MSG: pkg/Type` and that type's definition.
+    pub fn full_definition(&'static self) -> String {
+        let mut out = self.definition();
+        for r in self.referenced() {
+            if !out.ends_with('\n') {
+                out.push('\n');
+            }
+            let _ = write!(
+                out,
+                "{}\nMSG: {}\n{}",
+                "=".repeat(80),
+                r.type_name.replace("/msg/", "/"),
+                r.definition()
+            );
+        }
+        out
+    }
+}
+
+/// The project's `.msg` files (`shared/msgs/msg/`), by type name.
+const PROJECT_MSG_FILES: &[(&str, &str)] = &[
+    (
+        "teleop_msgs/msg/OperatorInput",
+        include_str!("../msg/OperatorInput.msg"),
+    ),
+    (
+        "teleop_msgs/msg/FingertipPressures",
+        include_str!("../msg/FingertipPressures.msg"),
+    ),
+    (
+        "teleop_msgs/msg/JointCommand",
+        include_str!("../msg/JointCommand.msg"),
+    ),
+    (
+        "teleop_msgs/msg/NodeStatus",
+        include_str!("../msg/NodeStatus.msg"),
+    ),
+];
+
 fn write_type(out: &mut String, d: &'static MsgDescription) {
     let _ = write!(out, "{{\"type_name\": \"{}\", \"fields\": [", d.type_name);
     for (i, f) in d.fields.iter().enumerate() {

@@ -34,6 +34,27 @@ pub trait Message:
     fn description() -> &'static MsgDescription;
 }
 
+/// Every message type of this crate that travels as a topic, by description: for tools
+/// that meet a type by its name (recorders, replay, bridges).
+pub fn topic_types() -> [&'static MsgDescription; 9] {
+    [
+        PoseStamped::description(),
+        JointState::description(),
+        OperatorInput::description(),
+        FingertipPressures::description(),
+        Image::description(),
+        CompressedImage::description(),
+        JointCommand::description(),
+        NodeStatus::description(),
+        Header::description(),
+    ]
+}
+
+/// The description of the topic type called `type_name` (`sensor_msgs/msg/JointState`).
+pub fn description_of(type_name: &str) -> Option<&'static MsgDescription> {
+    topic_types().into_iter().find(|d| d.type_name == type_name)
+}
+
 /// Errors of [`encode`] and [`decode`].
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]

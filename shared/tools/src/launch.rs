@@ -61,6 +61,10 @@ pub struct LaunchArgs {
     /// keys and forwards them to it).
     #[arg(long)]
     pub keyboard: bool,
+    /// Start only this site's nodes, `local` (the operator's) or `remote` (the
+    /// robot's): one site per machine, or the robot site driven by `teleop play`.
+    #[arg(long, value_parser = ["local", "remote"])]
+    pub site: Option<String>,
 }
 
 /// This run's directory for the configs the launcher writes.
@@ -279,7 +283,11 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
     let mut recorder = Recorder::new(&bus, &task_name, "teleop launch").await?;
     let mut children: Vec<(&'static NodeSpec, Child)> = Vec::new();
     let mut _terminal = None;
-    for spec in NODES {
+    for spec in NODES.iter().filter(|n| {
+        args.site
+            .as_deref()
+            .is_none_or(|site| n.site.label() == site)
+    }) {
         let mut cmd = Command::new(node_binary(spec.name)?);
         let mut stdin = Stdio::null();
         if let (Some((path, _)), "local_sim") = (&sim_config, spec.name) {

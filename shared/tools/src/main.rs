@@ -1,6 +1,7 @@
 //! `teleop`: the command-line tool to inspect a running system, in the spirit of
 //! `ros2 topic` / `ros2 node`, and to launch the whole system on one machine.
 
+mod bag;
 mod certs;
 mod inspect;
 mod launch;
@@ -53,6 +54,15 @@ enum Command {
     /// Record the end-of-run report of a running system (started by someone else:
     /// docker compose, several machines).
     Report(record::ReportArgs),
+    /// Record topics into a bag as rosbag2 writes them (a directory of MCAP files and
+    /// metadata.yaml), for ROS 2 tools, Foxglove and `teleop bag`.
+    Record(bag::RecordArgs),
+    /// Publish a bag's messages again at their recorded pace (like `ros2 bag play`):
+    /// fresh sequence numbers and timestamps, so the receivers take them.
+    Play(bag::PlayArgs),
+    /// Bags: what they hold, recovering one cut short.
+    #[command(subcommand)]
+    Bag(bag::BagCommand),
     /// Make a certificate authority and certificates for mutual TLS between the sites.
     Certs(certs::CertsArgs),
     /// The WAN-condition sweep's table, plots and checks, from what
@@ -137,6 +147,9 @@ async fn main() -> anyhow::Result<()> {
         Command::Router(args) => router::run(args, &cli.zenoh).await,
         Command::Report(args) => record::run(args, &cli.zenoh).await,
         Command::Certs(args) => certs::run(args),
+        Command::Record(args) => bag::record(&args, &bus_cfg).await,
+        Command::Play(args) => bag::play(&args, &bus_cfg).await,
+        Command::Bag(cmd) => bag::bag(&cmd),
         Command::SweepReport(args) => sweep::run(&args),
     }
 }

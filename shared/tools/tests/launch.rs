@@ -377,3 +377,307 @@ fn keyboard_pedals_from_the_launchers_terminal_drive_the_clutch() {
         .expect("arm line");
     assert!(!arm.contains("Active"), "{arm}");
 }
+
+/// `teleop record` beside a running system: the bag holds every topic that crosses
+/// between the sites, each message decodes, at about its rate; and two independent
+/// readers (Foxglove's `mcap` + `mcap-ros2-support`, and `rosbags` through the bag's
+/// metadata.yaml) decode every message and count the same (tests/interop/check_bag.py;
+/// Python from `$TELEOP_PYTHON`, as tests/run.sh sets it).
+#[test]
+fn a_recording_of_the_running_system_reads_in_the_field_s_tools() {
+    let _one = one_system();
+    let teleop = env!("CARGO_BIN_EXE_teleop");
+    let bag = std::env::temp_dir().join(format!("teleop-record-test-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&bag);
+    let launch = spawn_teleop(&[
+        "--domain-id",
+        "94",
+        "launch",
+        "--duration-s",
+        "16",
+        "--quiet",
+        "--no-report-files",
+    ]);
+    std::thread::sleep(std::time::Duration::from_secs(3));
+    let record = Command::new(teleop)
+        .args(["--domain-id", "94", "record", "--duration-s", "8", "-o"])
+        .arg(&bag)
+        .output()
+        .expect("run teleop record");
+    let launched = launch.wait_with_output().expect("wait for teleop launch");
+    let out = String::from_utf8_lossy(&record.stdout);
+    let err = String::from_utf8_lossy(&record.stderr);
+    println!("{out}\n{err}");
+    assert!(record.status.success(), "record failed:\n{out}\n{err}");
+    assert!(launched.status.success(), "launch failed");
+    assert!(err.contains("dropped 0"), "samples dropped:\n{err}");
+
+    let report = teleop_bag::read_bag(&bag).expect("read the bag");
+    let topics = report.topics();
+    let d = report.duration_s();
+    assert!(d > 7.0 && d < 9.0, "duration {d} s");
+    for spec in teleop_interfaces::topics::ALL
+        .iter()
+        .filter(|t| t.direction.crosses_sites())
+    {
+        let name = format!("/{}", spec.name);
+        let t = topics
+            .get(&name)
+            .unwrap_or_else(|| panic!("{name} not recorded:\n{report}"));
+        assert_eq!(t.type_name, spec.type_name);
+        assert_eq!(t.type_hash, spec.type_hash);
+        // At least a third of the nominal rate (the views are paced, the status comes
+        // once a second per node).
+        let rate = report.rate_hz(t.count).unwrap();
+        assert!(
+            rate > spec.rate_hz / 3.0,
+            "{name}: {rate:.1} Hz of {} Hz",
+            spec.rate_hz
+        );
+    }
+    // Every message decodes with the project's own decoder, too.
+    for file in &report.files {
+        let buf = std::fs::read(&file.path).unwrap();
+        for m in mcap::MessageStream::new(&buf).unwrap() {
+            let m = m.unwrap();
+            let schema = m.channel.schema.as_ref().unwrap();
+            decodes(&schema.name, &m.data);
+            assert!(
+                m.publish_time <= m.log_time + 50_000_000,
+                "{}: published after received",
+                m.channel.topic
+            );
+        }
+    }
+
+    let python = std::env::var("TELEOP_PYTHON").unwrap_or_else(|_| "python3".into());
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/interop/check_bag.py");
+    let check = Command::new(&python)
+        .arg(&script)
+        .arg(&bag)
+        .output()
+        .expect("run check_bag.py");
+    let stdout = String::from_utf8_lossy(&check.stdout);
+    let stderr = String::from_utf8_lossy(&check.stderr);
+    assert!(
+        check.status.success(),
+        "{python} {}: {stdout}\n{stderr}\n(pip install -r tests/interop/requirements.txt, or set TELEOP_PYTHON)",
+        script.display()
+    );
+    let json: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap();
+    assert_eq!(json["profile"][0], "ros2");
+    for (name, t) in &topics {
+        assert_eq!(json["mcap"][name].as_u64(), Some(t.count), "{name} (mcap)");
+        assert_eq!(
+            json["rosbags"][name].as_u64(),
+            Some(t.count),
+            "{name} (rosbags)"
+        );
+        assert_eq!(json["qos"][name], true, "{name}: no offered QoS");
+    }
+    let _ = std::fs::remove_dir_all(&bag);
+}
+
+/// Decodes `data` as the type `type_name` with the project's decoder; panics if not.
+fn decodes(type_name: &str, data: &[u8]) {
+    use teleop_msgs::*;
+    let ok = match type_name {
+        t if t == PoseStamped::TYPE_NAME => decode::<PoseStamped>(data).is_ok(),
+        t if t == JointState::TYPE_NAME => decode::<JointState>(data).is_ok(),
+        t if t == OperatorInput::TYPE_NAME => decode::<OperatorInput>(data).is_ok(),
+        t if t == FingertipPressures::TYPE_NAME => decode::<FingertipPressures>(data).is_ok(),
+        t if t == CompressedImage::TYPE_NAME => decode::<CompressedImage>(data).is_ok(),
+        t if t == Image::TYPE_NAME => decode::<Image>(data).is_ok(),
+        t if t == JointCommand::TYPE_NAME => decode::<JointCommand>(data).is_ok(),
+        t if t == NodeStatus::TYPE_NAME => decode::<NodeStatus>(data).is_ok(),
+        t if t == Header::TYPE_NAME => decode::<Header>(data).is_ok(),
+        other => panic!("unexpected type {other}"),
+    };
+    assert!(ok, "a {type_name} message does not decode");
+}
+
+/// Runs `teleop` with `args` to its end and asserts it succeeded; its stderr.
+fn teleop_ok(args: &[&str], extra: &[&Path]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_teleop"))
+        .args(args)
+        .args(extra)
+        .output()
+        .expect("run teleop");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(
+        out.status.success(),
+        "teleop {args:?} failed:\n{stdout}\n{stderr}"
+    );
+    stderr
+}
+
+/// The PR2's palm positions over the time since the arm started moving (first joint
+/// more than 2 mrad from where it stood), from a bag's `/teleop/pr2/joint_states`.
+fn palm_path(bag: &Path) -> Vec<(f64, nalgebra::Vector3<f64>)> {
+    let chain = teleop_kinematics::robots::pr2_arm_chain().unwrap();
+    let names = teleop_interfaces::joints::PR2_ARM_JOINTS;
+    let mut samples = Vec::new();
+    for file in teleop_bag::mcap_files(bag).unwrap() {
+        let buf = std::fs::read(&file).unwrap();
+        for m in mcap::MessageStream::new(&buf).unwrap() {
+            let m = m.unwrap();
+            if m.channel.topic != "/teleop/pr2/joint_states" {
+                continue;
+            }
+            let js: teleop_msgs::JointState = teleop_msgs::decode(&m.data).unwrap();
+            let q = nalgebra::SVector::<f64, 7>::from_fn(|i, _| {
+                let k = js.name.iter().position(|n| n == names[i]).unwrap();
+                js.position[k]
+            });
+            samples.push((m.log_time as f64 * 1e-9, q));
+        }
+    }
+    assert!(
+        !samples.is_empty(),
+        "no PR2 joint states in {}",
+        bag.display()
+    );
+    let q0 = samples[0].1;
+    let start = samples
+        .iter()
+        .find(|(_, q)| (q - q0).amax() > 0.002)
+        .unwrap_or_else(|| panic!("the PR2 never moved in {}", bag.display()))
+        .0;
+    samples
+        .iter()
+        .filter(|(t, _)| *t >= start)
+        .map(|(t, q)| (t - start, chain.end_pose(q).translation.vector))
+        .collect()
+}
+
+/// `teleop play` drives the robot site as the recorded operator did: the whole system
+/// runs while `teleop record` takes the operator's commands (wrist pose, pedals, finger
+/// targets) and the PR2's joint states; then the robot site alone (`launch --site
+/// remote`) gets those commands from `teleop play --as-publishers`, and the
+/// PR2's palm follows the same path: within 1 cm on average and 3 cm at most, time
+/// since the arm started moving against time since it started moving.
+#[test]
+fn a_recorded_operator_drives_the_robot_site_again() {
+    let _one = one_system();
+    let base = std::env::temp_dir().join(format!("teleop-play-test-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&base);
+    std::fs::create_dir_all(&base).unwrap();
+    let (original, replayed) = (base.join("original"), base.join("replayed"));
+    let commands = [
+        "/teleop/wrist_pose",
+        "/teleop/operator_input",
+        "/teleop/hand/joint_targets",
+    ];
+
+    // The original run, recorded from its start.
+    let launch = spawn_teleop(&[
+        "--domain-id",
+        "95",
+        "launch",
+        "--duration-s",
+        "15",
+        "--quiet",
+        "--no-report-files",
+    ]);
+    let mut rec = vec![
+        "--domain-id",
+        "95",
+        "record",
+        "--duration-s",
+        "13",
+        "/teleop/pr2/joint_states",
+    ];
+    rec.extend(commands);
+    rec.push("-o");
+    teleop_ok(&rec, &[&original]);
+    assert!(launch.wait_with_output().unwrap().status.success());
+
+    // The robot site alone; the operator's commands played back to it.
+    let site = spawn_teleop(&[
+        "--domain-id",
+        "96",
+        "launch",
+        "--site",
+        "remote",
+        "--duration-s",
+        "20",
+        "--quiet",
+        "--no-report-files",
+    ]);
+    std::thread::sleep(std::time::Duration::from_secs(3));
+    let record = spawn_teleop(&[
+        "--domain-id",
+        "96",
+        "record",
+        "--duration-s",
+        "15",
+        "/teleop/pr2/joint_states",
+        "-o",
+        replayed.to_str().unwrap(),
+    ]);
+    let mut play = vec![
+        "--domain-id",
+        "96",
+        "play",
+        original.to_str().unwrap(),
+        "--as-publishers",
+        "--topics",
+    ];
+    play.extend(commands);
+    let played = teleop_ok(&play, &[]);
+    println!("{played}");
+    let recorded = record.wait_with_output().unwrap();
+    assert!(
+        recorded.status.success(),
+        "{}",
+        String::from_utf8_lossy(&recorded.stderr)
+    );
+    assert!(site.wait_with_output().unwrap().status.success());
+
+    let a = palm_path(&original);
+    let b = palm_path(&replayed);
+    let span = a.last().unwrap().0.min(b.last().unwrap().0);
+    assert!(span > 6.0, "only {span:.1} s of motion to compare");
+    let mut errors = Vec::new();
+    for (t, p) in b.iter().filter(|(t, _)| *t <= span) {
+        let nearest = a
+            .iter()
+            .min_by(|x, y| (x.0 - t).abs().total_cmp(&(y.0 - t).abs()))
+            .unwrap();
+        errors.push((nearest.1 - p).norm());
+    }
+    let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+    let max = errors.iter().copied().fold(0.0, f64::max);
+    let travel = a
+        .windows(2)
+        .filter(|w| w[1].0 <= span)
+        .map(|w| (w[1].1 - w[0].1).norm())
+        .sum::<f64>();
+    println!(
+        "replayed palm path against the original over {span:.1} s ({travel:.2} m of travel): \
+         mean {:.1} mm, max {:.1} mm ({} samples)",
+        mean * 1e3,
+        max * 1e3,
+        errors.len()
+    );
+    assert!(
+        travel > 0.1,
+        "the original palm hardly moved ({travel:.3} m)"
+    );
+    assert!(
+        mean < 0.01 && max < 0.03,
+        "mean {mean:.4} m, max {max:.4} m"
+    );
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// Starts `teleop` with `args`, its output captured.
+fn spawn_teleop(args: &[&str]) -> std::process::Child {
+    Command::new(env!("CARGO_BIN_EXE_teleop"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| panic!("start teleop {args:?}: {e}"))
+}
