@@ -520,6 +520,7 @@ async fn the_operator_display_acknowledges_the_views_and_the_publisher_paces_by_
     let (sim, feedback) = small_views_sim_and_feedback(hub, &spoke);
     let display = OperatorDisplayConfig {
         bus: spoke.clone(),
+        http_listen: "127.0.0.1:0".into(),
         ..Default::default()
     };
     let probe = Bus::open("probe", &spoke).await.unwrap();

@@ -19,6 +19,7 @@
 
 pub mod camera_arm;
 pub mod camera_arm_node;
+pub mod display_web;
 pub mod keyboard_panel;
 pub mod local_sim;
 pub mod operator_display;

@@ -39,6 +39,10 @@ pub struct RecordArgs {
     /// Stop after this many seconds (default: at Ctrl-C / SIGTERM).
     #[arg(long)]
     pub duration_s: Option<f64>,
+    /// Receive and count every message as the recording would, write nothing: the
+    /// baseline of the recorder's overhead benchmark (`record_bench`).
+    #[arg(long, conflicts_with_all = ["output", "max_file_mb", "max_file_duration_s"])]
+    pub discard: bool,
 }
 
 fn parse_compression(s: &str) -> Result<Compression, String> {
@@ -107,24 +111,29 @@ pub fn bag(cmd: &BagCommand) -> anyhow::Result<()> {
     }
 }
 
-/// The topics to record.
-fn chosen(args: &RecordArgs) -> anyhow::Result<Vec<&'static TopicSpec>> {
-    if args.all {
+/// The topics a command that taps the bus takes (`teleop record`, `teleop foxglove`):
+/// every topic of the table with `all`, the ones named, or by default every topic that
+/// crosses between the sites. An unknown name is an error naming it; a topic named
+/// twice is taken once.
+pub fn chosen_topics(names: &[String], all: bool) -> anyhow::Result<Vec<&'static TopicSpec>> {
+    if all {
         return Ok(topics::ALL.iter().collect());
     }
-    if args.topics.is_empty() {
+    if names.is_empty() {
         return Ok(topics::ALL
             .iter()
             .filter(|t| t.direction.crosses_sites())
             .collect());
     }
-    args.topics
-        .iter()
-        .map(|name| {
-            topics::find(name)
-                .with_context(|| format!("unknown topic `{name}` (`teleop topics` lists them)"))
-        })
-        .collect()
+    let mut chosen: Vec<&'static TopicSpec> = Vec::new();
+    for name in names {
+        let spec = topics::find(name)
+            .with_context(|| format!("unknown topic `{name}` (`teleop topics` lists them)"))?;
+        if !chosen.iter().any(|c| c.name == spec.name) {
+            chosen.push(spec);
+        }
+    }
+    Ok(chosen)
 }
 
 /// `teleop_YYYY_MM_DD-HH_MM_SS` (UTC), as rosbag2 names its bags.
@@ -167,34 +176,41 @@ fn options(args: &RecordArgs) -> anyhow::Result<BagOptions> {
 }
 
 pub async fn record(args: &RecordArgs, cfg: &BusConfig) -> anyhow::Result<()> {
-    let specs = chosen(args)?;
+    let specs = chosen_topics(&args.topics, args.all)?;
     let opts = options(args)?;
     let dir = match &args.output {
         Some(d) => d.clone(),
         None => PathBuf::from(default_name(teleop_msgs::unix_nanos_now() / 1_000_000_000)),
     };
-    let mut writer = BagWriter::create(&dir, opts)?;
-    let ids = specs
-        .iter()
-        .map(|s| writer.add_topic(s))
-        .collect::<Result<Vec<TopicId>, _>>()?;
+    // With `--discard` the samples take the same way (taps, queue, thread) and end there.
+    let writer = if args.discard {
+        None
+    } else {
+        let mut writer = BagWriter::create(&dir, opts)?;
+        let ids = specs
+            .iter()
+            .map(|s| writer.add_topic(s))
+            .collect::<Result<Vec<TopicId>, _>>()?;
+        Some((writer, ids))
+    };
 
     let bus = Bus::open(&format!("teleop_record_{}", std::process::id()), cfg)
         .await
         .context("opening the Zenoh session")?;
-    let (tx, rx) = mpsc::sync_channel::<(TopicId, RawSample)>(QUEUE);
+    // Samples travel with their topic's index in `specs`.
+    let (tx, rx) = mpsc::sync_channel::<(usize, RawSample)>(QUEUE);
     let dropped = Arc::new(AtomicU64::new(0));
-    let written = Arc::new(AtomicU64::new(0));
+    let counts = Arc::new(Counts::default());
     let writer_thread = {
-        let written = Arc::clone(&written);
+        let counts = Arc::clone(&counts);
         std::thread::Builder::new()
             .name("bag-writer".into())
-            .spawn(move || write_all(writer, &rx, &written))
+            .spawn(move || write_all(writer, &rx, &counts))
             .context("starting the bag writer")?
     };
     let mut taps = Vec::new();
-    for (spec, id) in specs.iter().zip(&ids) {
-        let (tx, dropped, id) = (tx.clone(), Arc::clone(&dropped), *id);
+    for (id, spec) in specs.iter().enumerate() {
+        let (tx, dropped) = (tx.clone(), Arc::clone(&dropped));
         taps.push(
             bus.tap(spec, move |s| {
                 if tx.try_send((id, s)).is_err() {
@@ -205,25 +221,41 @@ pub async fn record(args: &RecordArgs, cfg: &BusConfig) -> anyhow::Result<()> {
         );
     }
     drop(tx);
-    eprintln!(
-        "recording {} topic(s) into {} (Ctrl-C stops)",
-        specs.len(),
-        dir.display()
-    );
+    if args.discard {
+        eprintln!(
+            "receiving {} topic(s), writing nothing (--discard; Ctrl-C stops)",
+            specs.len()
+        );
+    } else {
+        eprintln!(
+            "recording {} topic(s) into {} (Ctrl-C stops)",
+            specs.len(),
+            dir.display()
+        );
+    }
     let stop =
         teleop_node::stop_signal(args.duration_s.map(|s| Duration::from_secs_f64(s.max(0.0))));
     tokio::pin!(stop);
-    let mut tick = tokio::time::interval(Duration::from_secs(5));
+    let mut tick = tokio::time::interval(Duration::from_secs(1));
+    let mut progress = crate::progress::Progress::stderr();
+    let started = std::time::Instant::now();
     loop {
         tokio::select! {
             () = &mut stop => break,
-            _ = tick.tick() => tracing::info!(
-                written = written.load(Ordering::Relaxed),
-                dropped = dropped.load(Ordering::Relaxed),
-                "recording"
-            ),
+            _ = tick.tick() => progress.show(|| {
+                #[allow(clippy::cast_precision_loss)]
+                let mb = counts.bytes.load(Ordering::Relaxed) as f64 / 1e6;
+                format!(
+                    "{} {:.0} s: {} messages, {mb:.1} MB, {} dropped",
+                    if args.discard { "receiving" } else { "recording" },
+                    started.elapsed().as_secs_f64(),
+                    counts.messages.load(Ordering::Relaxed),
+                    dropped.load(Ordering::Relaxed),
+                )
+            }),
         }
     }
+    progress.finish();
     // Undeclaring the taps drops their senders: the writer drains what is queued,
     // closes the files and writes metadata.yaml.
     drop(taps);
@@ -232,21 +264,34 @@ pub async fn record(args: &RecordArgs, cfg: &BusConfig) -> anyhow::Result<()> {
         .map_err(|_| anyhow::anyhow!("the bag writer panicked"))??;
     bus.close().await.ok();
     let lost = dropped.load(Ordering::Relaxed);
-    eprintln!(
-        "recorded {} messages in {} file(s); dropped {lost} (the writer could not keep up)",
-        summary.messages,
-        summary.files.len()
-    );
-    if summary.messages == 0 {
+    let messages = counts.messages.load(Ordering::Relaxed);
+    let bytes = counts.bytes.load(Ordering::Relaxed);
+    // One line for people and for `record_bench`, which parses it.
+    match &summary {
+        Some(s) => eprintln!(
+            "recorded {} messages, {lost} dropped, {bytes} bytes received; {} file(s) ({})",
+            s.messages,
+            s.files.len(),
+            format!("{:?}", args.compression).to_lowercase()
+        ),
+        None => eprintln!(
+            "discarded {messages} messages, {lost} dropped, {bytes} bytes received; nothing written"
+        ),
+    }
+    if messages == 0 {
         bail!(
-            "nothing was recorded into {}: no publisher of the chosen topics was heard (is \
-             the system running, on this domain and network?)",
-            dir.display()
+            "nothing was received: no publisher of the chosen topics was heard (is the system \
+             running, on this domain and network?)"
         );
     }
-    print!("{}", read_bag(&dir)?);
+    if summary.is_some() {
+        print!("{}", read_bag(&dir)?);
+    }
     if lost > 0 {
-        tracing::warn!(dropped = lost, "samples dropped: the disk did not keep up");
+        tracing::warn!(
+            dropped = lost,
+            "samples dropped: the writer could not keep up"
+        );
     }
     Ok(())
 }
@@ -341,6 +386,7 @@ pub async fn play(args: &PlayArgs, cfg: &BusConfig) -> anyhow::Result<()> {
     let stop = teleop_node::stop_signal(None);
     tokio::pin!(stop);
     let (mut sent, mut failed) = (0u64, 0u64);
+    let mut progress = crate::progress::Progress::stderr();
     'files: for path in mcap_files(&args.path)? {
         let buf = std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
         for m in mcap::MessageStream::new(&buf)? {
@@ -368,8 +414,19 @@ pub async fn play(args: &PlayArgs, cfg: &BusConfig) -> anyhow::Result<()> {
                     tracing::warn!(topic = %m.channel.topic, "not sent: {e}");
                 }
             }
+            progress.show(|| {
+                #[allow(clippy::cast_precision_loss)]
+                let at = (m.log_time - from) as f64 * 1e-9;
+                let whole = (report.duration_s() - args.start_s).max(1e-9);
+                let whole = args.end_s.map_or(whole, |e| whole.min(e - args.start_s));
+                format!(
+                    "playing {at:.1} / {whole:.1} s of the bag ({:.0} %): {sent} messages",
+                    100.0 * (at / whole).min(1.0)
+                )
+            });
         }
     }
+    progress.finish();
     eprintln!(
         "played {sent} messages in {:.1} s{}",
         start.elapsed().as_secs_f64(),
@@ -386,29 +443,44 @@ pub async fn play(args: &PlayArgs, cfg: &BusConfig) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The writer thread: every queued sample into the bag, then the bag closed.
+/// What the writer thread has taken off the queue: messages, and their CDR bytes.
+#[derive(Debug, Default)]
+struct Counts {
+    messages: AtomicU64,
+    bytes: AtomicU64,
+}
+
+/// The writer thread: every queued sample into the bag (the topic ids in the order of
+/// the queue's indices), then the bag closed; without a bag (`--discard`) every sample
+/// counted and dropped.
 fn write_all(
-    mut writer: BagWriter,
-    rx: &mpsc::Receiver<(TopicId, RawSample)>,
-    written: &AtomicU64,
-) -> Result<teleop_bag::BagSummary, teleop_bag::BagError> {
+    mut writer: Option<(BagWriter, Vec<TopicId>)>,
+    rx: &mpsc::Receiver<(usize, RawSample)>,
+    counts: &Counts,
+) -> Result<Option<teleop_bag::BagSummary>, teleop_bag::BagError> {
     // MCAP's sequence is 32 bits; rmw_zenoh's counts from 1 in 64 (wraps after four
     // billion samples of one publisher).
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let low32 = |s: i64| s as u32;
     while let Ok((id, s)) = rx.recv() {
-        let log = u64::try_from(s.received_ns).unwrap_or(0);
-        let (publish, sequence) = match s.attachment {
-            Some(a) => (
-                u64::try_from(a.source_timestamp_ns).unwrap_or(log),
-                low32(a.sequence),
-            ),
-            None => (log, 0),
-        };
-        writer.write(id, log, publish, sequence, &s.payload)?;
-        written.fetch_add(1, Ordering::Relaxed);
+        if let Some((writer, ids)) = &mut writer {
+            let id = ids[id];
+            let log = u64::try_from(s.received_ns).unwrap_or(0);
+            let (publish, sequence) = match s.attachment {
+                Some(a) => (
+                    u64::try_from(a.source_timestamp_ns).unwrap_or(log),
+                    low32(a.sequence),
+                ),
+                None => (log, 0),
+            };
+            writer.write(id, log, publish, sequence, &s.payload)?;
+        }
+        counts.messages.fetch_add(1, Ordering::Relaxed);
+        counts
+            .bytes
+            .fetch_add(s.payload.len() as u64, Ordering::Relaxed);
     }
-    writer.close()
+    writer.map(|(w, _)| w.close()).transpose()
 }
 
 #[cfg(test)]

@@ -303,15 +303,63 @@ pub async fn monitor(
     duration_s: Option<f64>,
 ) -> anyhow::Result<()> {
     let duration = deadline(duration_s)?.map(|u| u.saturating_duration_since(Instant::now()));
-    monitor_until(cfg, only, teleop_node::stop_signal(duration)).await
+    monitor_until(cfg, only, teleop_node::stop_signal(duration), &[]).await
 }
 
-/// [`monitor`] until `stop` completes.
+/// How the monitor's table reaches the screen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TableOutput {
+    /// One table redrawn in place, like `top` (a terminal).
+    Redraw,
+    /// A new table every second, plain lines (a pipe, a file, a log).
+    Lines,
+}
+
+impl TableOutput {
+    /// [`TableOutput::Redraw`] on a terminal, [`TableOutput::Lines`] otherwise.
+    pub fn for_stdout() -> Self {
+        use std::io::IsTerminal;
+        if std::io::stdout().is_terminal() {
+            Self::Redraw
+        } else {
+            Self::Lines
+        }
+    }
+
+    /// `lines` as this output shows them: in place (cursor home, each line cleared to
+    /// its end, the rest of the screen cleared; the whole screen cleared the first
+    /// time) or as they are, followed by an empty line.
+    pub fn frame(self, lines: &[String], first: bool) -> String {
+        match self {
+            Self::Lines => {
+                let mut out = lines.join("\n");
+                out.push_str("\n\n");
+                out
+            }
+            Self::Redraw => {
+                let mut out = String::from(if first { "\x1b[2J\x1b[H" } else { "\x1b[H" });
+                for l in lines {
+                    out.push_str(l);
+                    out.push_str("\x1b[K\n");
+                }
+                out.push_str("\x1b[J");
+                out
+            }
+        }
+    }
+}
+
+/// [`monitor`] until `stop` completes; `banner` lines go above the table.
 pub async fn monitor_until(
     cfg: &BusConfig,
     only: Option<&str>,
     stop: impl std::future::Future<Output = ()>,
+    banner: &[String],
 ) -> anyhow::Result<()> {
+    use std::io::Write;
+    let output = TableOutput::for_stdout();
+    let started = Instant::now();
+    let mut first = true;
     let specs: Vec<&'static TopicSpec> = match only {
         Some(name) => vec![spec_or_bail(name)?],
         None => topics::ALL.iter().collect(),
@@ -333,16 +381,27 @@ pub async fn monitor_until(
         }
         let dt = t_before.elapsed().as_secs_f64();
         t_before = Instant::now();
-        println!(
+        let mut lines = banner.to_vec();
+        if output == TableOutput::Redraw {
+            lines.push(format!(
+                "teleop monitor: {:.0} s, every second (Ctrl-C to stop)",
+                started.elapsed().as_secs_f64()
+            ));
+        }
+        lines.push(format!(
             "{:<36} {:>8} {:>8} {:>9} {:>9} {:>7} {:>7} {:>7} {:>7}",
             "TOPIC", "RATE Hz", "NOMINAL", "p50 ms", "p99 ms", "STALE", "ORDER", "BAD", "TOTAL"
-        );
+        ));
         for (sub, prev) in subs.iter().zip(before.iter_mut()) {
             let now = sub.stats();
-            println!("{}", monitor_line(sub.spec(), &now, prev, dt));
+            lines.push(monitor_line(sub.spec(), &now, prev, dt));
             *prev = now;
         }
-        println!();
+        let mut stdout = std::io::stdout().lock();
+        // A closed stdout (the reader went away) ends nothing: the monitor only shows.
+        let _ = stdout.write_all(output.frame(&lines, first).as_bytes());
+        let _ = stdout.flush();
+        first = false;
     }
     drop(subs);
     bus.close().await?;
@@ -352,6 +411,25 @@ pub async fn monitor_until(
 #[cfg(test)]
 mod dispatch_tests {
     use super::*;
+
+    #[test]
+    fn a_terminal_gets_one_table_redrawn_in_place_a_pipe_plain_lines() {
+        let lines = vec!["TOPIC".to_owned(), "/a 1".to_owned()];
+        let plain = TableOutput::Lines.frame(&lines, true);
+        assert_eq!(plain, "TOPIC\n/a 1\n\n");
+        assert!(!plain.contains('\x1b'));
+        let first = TableOutput::Redraw.frame(&lines, true);
+        let next = TableOutput::Redraw.frame(&lines, false);
+        assert!(first.starts_with("\x1b[2J\x1b[H"), "{first:?}");
+        assert!(
+            next.starts_with("\x1b[H") && !next.contains("\x1b[2J"),
+            "{next:?}"
+        );
+        assert!(
+            next.contains("/a 1\x1b[K\n") && next.ends_with("\x1b[J"),
+            "{next:?}"
+        );
+    }
 
     async fn type_name_of<T: Message>() -> anyhow::Result<&'static str> {
         Ok(T::TYPE_NAME)

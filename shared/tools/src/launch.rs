@@ -19,6 +19,7 @@ use teleop_interfaces::nodes::{NODES, NodeSpec};
 use teleop_interfaces::topics;
 use teleop_local_site::keyboard_panel::{KeyboardPanelConfig, TerminalMode};
 use teleop_local_site::local_sim::LocalSimConfig;
+use teleop_local_site::operator_display::OperatorDisplayConfig;
 use teleop_local_site::wrist_tracker::{PanelSource, WristTrackerConfig};
 use teleop_msgs::{Lifecycle, NodeStatus};
 use teleop_node::ZenohArgs;
@@ -65,6 +66,10 @@ pub struct LaunchArgs {
     /// robot's): one site per machine, or the robot site driven by `teleop play`.
     #[arg(long, value_parser = ["local", "remote"])]
     pub site: Option<String>,
+    /// Serve the operator display's browser page on this address (host:port), or `off`
+    /// for no page. Default: the display's config (127.0.0.1:8088).
+    #[arg(long)]
+    pub display: Option<String>,
 }
 
 /// This run's directory for the configs the launcher writes.
@@ -96,6 +101,27 @@ fn keyboard_wrist_tracker_config(args: &LaunchArgs) -> anyhow::Result<PathBuf> {
     };
     cfg.panel = PanelSource::Keyboard(keyboard);
     write_run_config(name, &cfg)
+}
+
+/// The operator display's config for `--display` (the shipped file or the defaults,
+/// its page on the address given), and the address its page is served on (empty: none).
+fn display_config(args: &LaunchArgs) -> anyhow::Result<(Option<PathBuf>, String)> {
+    let name = teleop_interfaces::nodes::OPERATOR_DISPLAY;
+    let mut cfg: OperatorDisplayConfig = match &args.config_dir {
+        Some(dir) => teleop_node::config::load_checked(&dir.join(format!("{name}.toml")))?,
+        None => OperatorDisplayConfig::default(),
+    };
+    let Some(listen) = &args.display else {
+        return Ok((None, cfg.http_listen));
+    };
+    cfg.http_listen = if listen == "off" {
+        String::new()
+    } else {
+        teleop_local_site::display_web::parse_listen(listen)
+            .with_context(|| "--display".to_owned())?;
+        listen.clone()
+    };
+    Ok((Some(write_run_config(name, &cfg)?), cfg.http_listen))
 }
 
 /// Forwards this process's stdin to the wrist tracker's keyboard panel, byte by byte
@@ -260,6 +286,7 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
 
     ensure_onnx_runtime(&args).await?;
     let sim_config = local_sim_config(&args)?;
+    let (display_config, display_listen) = display_config(&args)?;
     let task_name = match &sim_config {
         Some((_, t)) => t.clone(),
         None => match &args.config_dir {
@@ -299,6 +326,10 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
             let (keys_in, keys_out) = std::io::pipe().context("a pipe for the keys")?;
             _terminal = forward_keys(keys_out)?;
             stdin = Stdio::from(keys_in);
+        } else if let (Some(path), teleop_interfaces::nodes::OPERATOR_DISPLAY) =
+            (&display_config, spec.name)
+        {
+            cmd.arg("--config").arg(path);
         } else if let Some(dir) = &args.config_dir {
             cmd.arg("--config")
                 .arg(dir.join(format!("{}.toml", spec.name)));
@@ -315,6 +346,23 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         tracing::info!(node = spec.name, pid = child.id(), "started");
         children.push((spec, child));
     }
+    let mut banner = vec![format!(
+        "teleop launch: {} nodes{}",
+        children.len(),
+        args.task
+            .as_deref()
+            .map(|t| format!(", task {t}"))
+            .unwrap_or_default()
+    )];
+    if !display_listen.is_empty()
+        && children
+            .iter()
+            .any(|(s, _)| s.name == teleop_interfaces::nodes::OPERATOR_DISPLAY)
+    {
+        let line = format!("operator display: open http://{display_listen}/ in a browser");
+        println!("{line}");
+        banner.push(line);
+    }
     // `--duration-s` is simulated time.
     let duration = args
         .duration_s
@@ -324,7 +372,8 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
             teleop_node::stop_signal(duration).await;
             Ok(())
         } else {
-            crate::inspect::monitor_until(&cfg, None, teleop_node::stop_signal(duration)).await
+            crate::inspect::monitor_until(&cfg, None, teleop_node::stop_signal(duration), &banner)
+                .await
         }
     };
     let run_once = sim_config.is_some();

@@ -3,8 +3,10 @@
 
 mod bag;
 mod certs;
+mod foxglove;
 mod inspect;
 mod launch;
+mod progress;
 mod publish;
 mod record;
 mod report;
@@ -63,6 +65,10 @@ enum Command {
     /// Bags: what they hold, recovering one cut short.
     #[command(subcommand)]
     Bag(bag::BagCommand),
+    /// A live view in Foxglove: topics served over Foxglove's WebSocket protocol (CDR
+    /// with their ROS 2 definitions), for its "Open connection"; the layout is
+    /// deploy/foxglove/teleop-layout.json.
+    Foxglove(foxglove::FoxgloveArgs),
     /// Make a certificate authority and certificates for mutual TLS between the sites.
     Certs(certs::CertsArgs),
     /// The WAN-condition sweep's table, plots and checks, from what
@@ -150,6 +156,7 @@ async fn main() -> anyhow::Result<()> {
         Command::Record(args) => bag::record(&args, &bus_cfg).await,
         Command::Play(args) => bag::play(&args, &bus_cfg).await,
         Command::Bag(cmd) => bag::bag(&cmd),
+        Command::Foxglove(args) => foxglove::run(&args, &bus_cfg).await,
         Command::SweepReport(args) => sweep::run(&args),
     }
 }
