@@ -581,3 +581,31 @@ async fn the_operator_display_acknowledges_the_views_and_the_publisher_paces_by_
     let rtt_us = f("feedback.camera_pacing.base_rtt_us");
     assert!(rtt_us > 0 && rtt_us < 100_000, "{rtt_us} us");
 }
+
+/// A page address already taken leaves the display running without its page: the
+/// views would still be received and acknowledged; its status says why there is no
+/// page and `display.web.serving` is 0.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_operator_display_runs_on_without_its_page_when_the_address_is_taken() {
+    use teleop_local_site::operator_display::{self, OperatorDisplayConfig};
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = taken.local_addr().unwrap();
+    let (hub, _spoke) = isolated_pair(26, free_port().unwrap());
+    let report = operator_display::run(
+        OperatorDisplayConfig {
+            bus: hub,
+            http_listen: addr.to_string(),
+            ..Default::default()
+        },
+        Some(Duration::from_millis(1500)),
+    )
+    .await
+    .expect("the display runs without its page");
+    assert_eq!(report.counter("display.web.serving"), Some(0), "{report:?}");
+    assert!(
+        report.last_error.contains("no browser page")
+            && report.last_error.contains(&addr.to_string()),
+        "{}",
+        report.last_error
+    );
+}

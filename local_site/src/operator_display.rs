@@ -689,6 +689,10 @@ impl Node for OperatorDisplayNode {
             out.push((format!("display.{name}.received"), received));
             out.push((format!("display.{name}.age_us"), age));
         }
+        out.push((
+            "display.web.serving".to_owned(),
+            u64::from(self.web.is_some()),
+        ));
         if let Some(web) = &self.web {
             let s = &web.stats;
             for (name, counter) in [
@@ -721,15 +725,18 @@ impl Node for OperatorDisplayNode {
 }
 
 /// Runs the node on the system clock until `duration` elapses (forever if `None`) or
-/// SIGINT/SIGTERM, serving the page on `http_listen`.
+/// SIGINT/SIGTERM, serving the page on `http_listen` (if that address cannot be bound,
+/// in use or not this machine's, the node runs without its page, the reason in its
+/// status's last error and `display.web.serving` 0).
 ///
 /// # Errors
-/// Bus errors; the page's address cannot be bound (in use, not this machine's).
+/// Bus errors; `http_listen` is not an address.
 pub async fn run(
     cfg: OperatorDisplayConfig,
     duration: Option<Duration>,
 ) -> anyhow::Result<FinalReport> {
     let bus = Bus::open(&cfg.node_name, &cfg.bus).await?;
+    let mut page_error = String::new();
     let (web, server) = if cfg.http_listen.is_empty() {
         (None, None)
     } else {
@@ -739,17 +746,28 @@ pub async fn run(
             Duration::from_secs_f64(cfg.web_send_timeout_s),
         );
         let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-        let (bound, task) = display_web::serve(addr, Arc::clone(&hub), async {
+        match display_web::serve(addr, Arc::clone(&hub), async {
             let _ = stop_rx.await;
         })
         .await
-        .map_err(|e| {
-            anyhow::anyhow!("operator display page: {e} (set http_listen, or \"\" for no page)")
-        })?;
-        tracing::info!("operator display: http://{bound}/");
-        (Some(hub), Some((stop_tx, task)))
+        {
+            Ok((bound, task)) => {
+                tracing::info!("operator display: http://{bound}/");
+                (Some(hub), Some((stop_tx, task)))
+            }
+            // The views are still received and acknowledged (their pacing across the
+            // WAN depends on it): the node runs on without its page, and says why.
+            Err(e) => {
+                page_error = format!(
+                    "no browser page: {e} (set http_listen to a free address, or \"\" for none)"
+                );
+                tracing::error!("operator display: {page_error}");
+                (None, None)
+            }
+        }
     };
-    let node = OperatorDisplayNode::new(&cfg, &bus, web).await?;
+    let mut node = OperatorDisplayNode::new(&cfg, &bus, web).await?;
+    node.last_error = page_error;
     let report = teleop_node::run(bus, node, teleop_node::stop_signal(duration)).await;
     if let Some((stop_tx, task)) = server {
         let _ = stop_tx.send(());

@@ -15,6 +15,9 @@ use std::process::{Child, Command, ExitStatus, Stdio};
 use std::sync::{Arc, Mutex, mpsc};
 use std::time::{Duration, Instant};
 
+mod common;
+
+use common::free_port;
 use futures_util::{SinkExt, StreamExt};
 use serde_json::{Value, json};
 use teleop_bus::{Bus, BusConfig, ZenohSettings};
@@ -30,14 +33,6 @@ use tokio_tungstenite::tungstenite::{self, Message};
 const SUBPROTOCOL: &str = "foxglove.sdk.v1";
 /// How long any one step may take before the test gives up.
 const STEP: Duration = Duration::from_secs(30);
-
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
 
 fn layout_path() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../deploy/foxglove/teleop-layout.json")

@@ -8,6 +8,8 @@
 use std::path::Path;
 use std::process::Command;
 
+mod common;
+
 use teleop_interfaces::nodes::NODES;
 
 /// One whole system at a time: three at once (24 processes) starve a 2-core machine,
@@ -475,7 +477,94 @@ fn a_recording_of_the_running_system_reads_in_the_field_s_tools() {
         );
         assert_eq!(json["qos"][name], true, "{name}: no offered QoS");
     }
+
+    replay_drives_the_operator_display(&bag, &report);
     let _ = std::fs::remove_dir_all(&bag);
+}
+
+/// The recording replayed to the operator display alone (its own domain, nothing
+/// else running): `teleop play --as-publishers` speaks as the feedback publisher, and
+/// the display shows what was recorded: its page's state names the views received and
+/// the fingertip forces' and the PR2's states accepted, at least 90 % of what the bag
+/// holds.
+fn replay_drives_the_operator_display(bag: &Path, report: &teleop_bag::BagReport) {
+    let port = common::free_port();
+    let config = bag.with_extension("display.toml");
+    std::fs::write(&config, format!("http_listen = \"127.0.0.1:{port}\"\n")).unwrap();
+    let display_bin = Path::new(env!("CARGO_BIN_EXE_teleop"))
+        .parent()
+        .unwrap()
+        .join("operator_display");
+    let mut display = Command::new(display_bin)
+        .args(["--domain-id", "95", "--config"])
+        .arg(&config)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("start operator_display");
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(20);
+    while common::http_get(port, "/api/state").is_none() {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the display's page never answered"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(200));
+    }
+    let topics = [
+        "/teleop/remote_camera/top/image/compressed",
+        "/teleop/remote_camera/side/image/compressed",
+        "/teleop/shadow/fingertip_pressures",
+        "/teleop/pr2/joint_states",
+    ];
+    let mut args = vec!["--domain-id", "95", "play"];
+    let bag_arg = bag.to_str().unwrap();
+    args.push(bag_arg);
+    args.extend(["--as-publishers", "--delay-s", "1", "--topics"]);
+    args.extend(topics);
+    teleop_ok(&args, &[]);
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    let (_, body) = common::http_get(port, "/api/state").expect("the display's state");
+    let _ = std::process::Command::new("kill")
+        .args(["-INT", &display.id().to_string()])
+        .status();
+    let _ = display.wait();
+    let _ = std::fs::remove_file(&config);
+
+    let state: serde_json::Value = serde_json::from_str(&body).unwrap();
+    let recorded = report.topics();
+    let count = |name: &str| recorded[name].count;
+    for (i, topic) in topics[..2].iter().enumerate() {
+        let shown = state["views"][i]["received"].as_u64().unwrap();
+        assert_eq!(state["views"][i]["topic"], *topic);
+        assert!(
+            shown * 10 >= count(topic) * 9 && shown <= count(topic),
+            "{topic}: {shown} shown of {} recorded",
+            count(topic)
+        );
+    }
+    // The feedback is kept newest-only (the display draws the newest): what its
+    // subscriptions accepted is the count to compare.
+    for topic in &topics[2..] {
+        let accepted = state["topics"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|t| t["name"] == *topic)
+            .and_then(|t| t["accepted"].as_u64())
+            .unwrap_or_else(|| panic!("{topic} not on the page: {state}"));
+        assert!(
+            accepted * 10 >= count(topic) * 9 && accepted <= count(topic),
+            "{topic}: {accepted} accepted of {} recorded",
+            count(topic)
+        );
+    }
+    assert!(state["forces"]["received"].as_u64() > Some(0), "{state}");
+    assert_eq!(state["forces"]["newton"].as_array().map(Vec::len), Some(5));
+    assert_eq!(
+        state["pr2"]["position"].as_array().map(Vec::len),
+        Some(7),
+        "{state}"
+    );
 }
 
 /// Decodes `data` as the type `type_name` with the project's decoder; panics if not.
