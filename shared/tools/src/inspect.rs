@@ -349,7 +349,8 @@ impl TableOutput {
     }
 }
 
-/// [`monitor`] until `stop` completes; `banner` lines go above the table.
+/// [`monitor`] until `stop` completes; `banner` lines go above the table redrawn in
+/// place (plain lines leave them out: the caller prints them once).
 pub async fn monitor_until(
     cfg: &BusConfig,
     only: Option<&str>,
@@ -381,8 +382,10 @@ pub async fn monitor_until(
         }
         let dt = t_before.elapsed().as_secs_f64();
         t_before = Instant::now();
-        let mut lines = banner.to_vec();
+        // Plain lines: the caller printed the banner once already.
+        let mut lines = Vec::new();
         if output == TableOutput::Redraw {
+            lines.extend_from_slice(banner);
             lines.push(format!(
                 "teleop monitor: {:.0} s, every second (Ctrl-C to stop)",
                 started.elapsed().as_secs_f64()
