@@ -118,11 +118,11 @@ impl WebHub {
             tx.send_replace(Some(Arc::new(frame)));
         }
     }
+}
 
-    fn count(&self, counter: &AtomicU64, n: u64) {
-        let _ = self;
-        counter.fetch_add(n, Ordering::Relaxed);
-    }
+/// Adds `n` to one of the [`WebStats`] counters.
+fn count(counter: &AtomicU64, n: u64) {
+    counter.fetch_add(n, Ordering::Relaxed);
 }
 
 /// Why the page could not be served.
@@ -183,7 +183,7 @@ pub async fn serve(
 }
 
 fn asset(hub: &WebHub, content_type: &'static str, body: &'static str) -> Response {
-    hub.count(&hub.stats.http_requests, 1);
+    count(&hub.stats.http_requests, 1);
     (
         [
             (header::CONTENT_TYPE, content_type),
@@ -207,7 +207,7 @@ async fn style(State(hub): State<Arc<WebHub>>) -> Response {
 }
 
 async fn state(State(hub): State<Arc<WebHub>>) -> Response {
-    hub.count(&hub.stats.http_requests, 1);
+    count(&hub.stats.http_requests, 1);
     let json = hub.state.borrow().clone();
     (
         [
@@ -221,7 +221,7 @@ async fn state(State(hub): State<Arc<WebHub>>) -> Response {
 
 async fn socket(State(hub): State<Arc<WebHub>>, ws: WebSocketUpgrade) -> Response {
     if hub.stats.clients.load(Ordering::Relaxed) >= hub.max_clients {
-        hub.count(&hub.stats.refused, 1);
+        count(&hub.stats.refused, 1);
         return (
             StatusCode::SERVICE_UNAVAILABLE,
             format!(
@@ -232,7 +232,7 @@ async fn socket(State(hub): State<Arc<WebHub>>, ws: WebSocketUpgrade) -> Respons
             .into_response();
     }
     hub.stats.clients.fetch_add(1, Ordering::Relaxed);
-    hub.count(&hub.stats.connections, 1);
+    count(&hub.stats.connections, 1);
     ws.on_upgrade(move |socket| async move {
         client(socket, &hub).await;
         hub.stats.clients.fetch_sub(1, Ordering::Relaxed);
@@ -270,7 +270,7 @@ async fn client(mut socket: WebSocket, hub: &WebHub) {
             Next::Incoming(Some(Ok(_))) => continue,
             Next::State => {
                 let json = state_rx.borrow_and_update().clone();
-                hub.count(&hub.stats.states_sent, 1);
+                count(&hub.stats.states_sent, 1);
                 Message::Text(json.to_string().into())
             }
             Next::View(camera) => {
@@ -283,13 +283,13 @@ async fn client(mut socket: WebSocket, hub: &WebHub) {
                     continue;
                 };
                 if let Some(prev) = last_seq[camera] {
-                    hub.count(
+                    count(
                         &hub.stats.frames_skipped,
                         frame.seq.saturating_sub(prev).saturating_sub(1),
                     );
                 }
                 last_seq[camera] = Some(frame.seq);
-                hub.count(&hub.stats.frames_sent, 1);
+                count(&hub.stats.frames_sent, 1);
                 Message::Binary(frame.message.clone())
             }
         };
@@ -299,10 +299,10 @@ async fn client(mut socket: WebSocket, hub: &WebHub) {
             _ => 0,
         };
         match tokio::time::timeout(hub.send_timeout, socket.send(message)).await {
-            Ok(Ok(())) => hub.count(&hub.stats.bytes_sent, len as u64),
+            Ok(Ok(())) => count(&hub.stats.bytes_sent, len as u64),
             Ok(Err(_)) => break,
             Err(_) => {
-                hub.count(&hub.stats.send_timeouts, 1);
+                count(&hub.stats.send_timeouts, 1);
                 break;
             }
         }

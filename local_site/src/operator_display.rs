@@ -33,6 +33,7 @@ use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
 use teleop_bus::{Bus, BusConfig, Publisher, StatsSnapshot, Subscriber};
+use teleop_interfaces::joints::FINGERTIPS;
 use teleop_interfaces::topics::{self, Topic, TopicSpec};
 use teleop_msgs::{
     CompressedImage, FingertipPressures, Header, JointState, Lifecycle, NodeStatus, OperatorInput,
@@ -263,7 +264,7 @@ pub struct PageView {
 
 #[derive(Debug, Serialize)]
 pub struct PageForces {
-    /// Finger names in the message's order (ff, mf, rf, lf, th).
+    /// Finger names in the message's order ([`FINGERTIPS`]: ff, mf, rf, lf, th).
     pub fingers: [&'static str; 5],
     /// Newest forces, N; empty before the first message.
     pub newton: Vec<f64>,
@@ -317,7 +318,7 @@ pub struct PageTopic {
     pub accepted: u64,
 }
 
-#[derive(Debug, Serialize)]
+#[derive(Debug, Default, Serialize)]
 pub struct PageWeb {
     pub clients: u64,
     pub frames_sent: u64,
@@ -353,6 +354,7 @@ pub struct OperatorDisplayNode {
     status: Feed<NodeStatus>,
     heard: BTreeMap<String, Heard>,
     rates: BTreeMap<&'static str, RateWindow>,
+    next_rates_s: f64,
     web: Option<Arc<WebHub>>,
     next_state_s: f64,
     wake: Arc<tokio::sync::Notify>,
@@ -414,6 +416,7 @@ impl OperatorDisplayNode {
             status: Feed::new(bus, "status", &topics::NODE_STATUS).await?,
             heard: BTreeMap::new(),
             rates: BTreeMap::new(),
+            next_rates_s: 0.0,
             web,
             next_state_s: 0.0,
             wake,
@@ -481,29 +484,25 @@ impl OperatorDisplayNode {
                 accepted: s.accepted,
             })
             .collect();
-        let web = self.web.as_ref().map_or(
-            PageWeb {
-                clients: 0,
-                frames_sent: 0,
-                frames_skipped: 0,
-            },
-            |w| PageWeb {
+        let web = self
+            .web
+            .as_ref()
+            .map_or_else(PageWeb::default, |w| PageWeb {
                 clients: w.stats.clients.load(Ordering::Relaxed),
                 frames_sent: w.stats.frames_sent.load(Ordering::Relaxed),
                 frames_skipped: w.stats.frames_skipped.load(Ordering::Relaxed),
-            },
-        );
+            });
         PageState {
             t_s: now_s,
             node: self.node_name.clone(),
             views,
             forces: PageForces {
-                fingers: ["ff", "mf", "rf", "lf", "th"],
+                fingers: FINGERTIPS,
                 newton: self
                     .pressures
                     .newest
                     .as_ref()
-                    .map(|p| vec![p.ff, p.mf, p.rf, p.lf, p.th])
+                    .map(|p| p.values().to_vec())
                     .unwrap_or_default(),
                 peak_newton: self.peak_newton,
                 scale_n: self.force_scale_n,
@@ -622,7 +621,7 @@ impl Node for OperatorDisplayNode {
         self.shadow.take(now_s);
         let peak = &mut self.peak_newton;
         self.pressures.take_each(now_s, |p| {
-            for (m, f) in peak.iter_mut().zip([p.ff, p.mf, p.rf, p.lf, p.th]) {
+            for (m, f) in peak.iter_mut().zip(p.values()) {
                 if f.is_finite() {
                     *m = m.max(f);
                 }
@@ -639,11 +638,16 @@ impl Node for OperatorDisplayNode {
                 },
             );
         });
-        for (spec, s) in self.topic_stats() {
-            self.rates
-                .entry(spec.name)
-                .or_default()
-                .update(s.accepted, now_s);
+        // The rates move once a second: the statistics' snapshots (two quantiles under
+        // each subscription's lock) are not taken on every view's wake-up.
+        if now_s >= self.next_rates_s {
+            self.next_rates_s = now_s + 1.0;
+            for (spec, s) in self.topic_stats() {
+                self.rates
+                    .entry(spec.name)
+                    .or_default()
+                    .update(s.accepted, now_s);
+            }
         }
         self.publish_page(now_s);
     }

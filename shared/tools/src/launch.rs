@@ -87,14 +87,22 @@ fn write_run_config<T: serde::Serialize>(name: &str, cfg: &T) -> anyhow::Result<
     Ok(path)
 }
 
+/// Node `name`'s config for this run: `<name>.toml` of `--config-dir`, or its defaults.
+fn shipped_or_default<C: teleop_node::NodeConfig + Default>(
+    args: &LaunchArgs,
+    name: &str,
+) -> anyhow::Result<C> {
+    Ok(match &args.config_dir {
+        Some(dir) => teleop_node::config::load_checked(&dir.join(format!("{name}.toml")))?,
+        None => C::default(),
+    })
+}
+
 /// The wrist tracker's config for `--keyboard`: the shipped file or the defaults, its
 /// panel the keyboard.
 fn keyboard_wrist_tracker_config(args: &LaunchArgs) -> anyhow::Result<PathBuf> {
     let name = teleop_interfaces::nodes::WRIST_TRACKER;
-    let mut cfg: WristTrackerConfig = match &args.config_dir {
-        Some(dir) => teleop_node::config::load_checked(&dir.join(format!("{name}.toml")))?,
-        None => WristTrackerConfig::default(),
-    };
+    let mut cfg: WristTrackerConfig = shipped_or_default(args, name)?;
     let keyboard = match cfg.panel {
         PanelSource::Keyboard(k) => k,
         _ => KeyboardPanelConfig::default(),
@@ -107,10 +115,7 @@ fn keyboard_wrist_tracker_config(args: &LaunchArgs) -> anyhow::Result<PathBuf> {
 /// its page on the address given), and the address its page is served on (empty: none).
 fn display_config(args: &LaunchArgs) -> anyhow::Result<(Option<PathBuf>, String)> {
     let name = teleop_interfaces::nodes::OPERATOR_DISPLAY;
-    let mut cfg: OperatorDisplayConfig = match &args.config_dir {
-        Some(dir) => teleop_node::config::load_checked(&dir.join(format!("{name}.toml")))?,
-        None => OperatorDisplayConfig::default(),
-    };
+    let mut cfg: OperatorDisplayConfig = shipped_or_default(args, name)?;
     let Some(listen) = &args.display else {
         return Ok((None, cfg.http_listen));
     };
@@ -169,10 +174,7 @@ fn forward_keys(
 /// The simulator's config for this run: the shipped file or the defaults, with the
 /// task chosen on the command line (run once).
 fn local_sim_config(args: &LaunchArgs) -> anyhow::Result<Option<(PathBuf, String)>> {
-    let mut cfg: LocalSimConfig = match &args.config_dir {
-        Some(dir) => teleop_node::config::load_checked(&dir.join("local_sim.toml"))?,
-        None => LocalSimConfig::default(),
-    };
+    let mut cfg: LocalSimConfig = shipped_or_default(args, "local_sim")?;
     let Some(task) = &args.task else {
         return Ok(None);
     };
