@@ -140,6 +140,11 @@ pub struct BusConfig {
     /// line; never from a file): `None`, the default, is the system clock.
     #[serde(skip)]
     pub time: Option<TimeScale>,
+    /// Simulated time whose rate a launcher changes during the run
+    /// ([`crate::clock::PacedClock`], `--time-file`; never from a file): exclusive with
+    /// `time`.
+    #[serde(skip)]
+    pub time_file: Option<std::path::PathBuf>,
 }
 
 /// A run's simulated time: `scale` x the wall clock, agreeing with it at `origin_ns`
@@ -158,6 +163,7 @@ impl Default for BusConfig {
             deadlines_ms: Default::default(),
             zenoh: ZenohSettings::default(),
             time: None,
+            time_file: None,
         }
     }
 }

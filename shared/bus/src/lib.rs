@@ -25,7 +25,7 @@ pub mod stats;
 pub mod testing;
 
 pub use attachment::Attachment;
-pub use clock::{Clock, ManualClock, ScaledClock, SystemClock};
+pub use clock::{Clock, ManualClock, PacedClock, PacedClockWriter, ScaledClock, SystemClock};
 pub use config::{BusConfig, Mode, TimeScale, TlsSettings, ZenohSettings};
 pub use directory::{PublisherDirectory, PublisherInfo};
 pub use session::{

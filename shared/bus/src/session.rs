@@ -101,10 +101,19 @@ impl Bus {
     /// [`BusError`] if the name is invalid, the configuration is refused or the session
     /// cannot open.
     pub async fn open(node_name: &str, config: &BusConfig) -> Result<Self, BusError> {
-        let clock: Arc<dyn Clock> = match config.time {
-            None => clock::system(),
-            Some(t) => {
+        let clock: Arc<dyn Clock> = match (config.time, &config.time_file) {
+            (None, None) => clock::system(),
+            (Some(t), None) => {
                 Arc::new(clock::ScaledClock::new(t.origin_ns, t.scale).map_err(BusError::Clock)?)
+            }
+            (None, Some(path)) => {
+                Arc::new(clock::PacedClock::open(path).map_err(|e| BusError::Clock(e.to_string()))?)
+            }
+            (Some(_), Some(path)) => {
+                return Err(BusError::Clock(format!(
+                    "a time scale and a clock file ({}) at once: give one",
+                    path.display()
+                )));
             }
         };
         Self::open_with_clock(node_name, config, clock).await

@@ -60,6 +60,11 @@ pub struct ZenohArgs {
     /// when the process starts; a launcher passes its own to every node).
     #[arg(long, requires = "time_scale")]
     pub time_origin_ns: Option<i64>,
+    /// Run on the simulated time of this clock file, whose rate a launcher changes
+    /// during the run (`teleop launch --as-fast-as-possible` writes it and passes it to
+    /// every node; not with --time-scale).
+    #[arg(long, conflicts_with = "time_scale")]
+    pub time_file: Option<PathBuf>,
     /// Mutual TLS: the certificate authority (PEM) every peer must be signed by (with
     /// --tls-cert and --tls-key; every endpoint must then be a tls/ one).
     #[arg(long, requires_all = ["tls_cert", "tls_key"])]
@@ -109,6 +114,9 @@ impl ZenohArgs {
                 certificate: cert.clone(),
                 private_key: key.clone(),
             });
+        }
+        if let Some(p) = &self.time_file {
+            cfg.time_file = Some(p.clone());
         }
         if let Some(scale) = self.time_scale {
             cfg.time = Some(teleop_bus::TimeScale {
@@ -164,6 +172,9 @@ impl ZenohArgs {
         }
         if let Some(origin) = self.time_origin_ns {
             out.extend(["--time-origin-ns".into(), origin.to_string()]);
+        }
+        if let Some(p) = &self.time_file {
+            out.extend(["--time-file".into(), p.display().to_string()]);
         }
         for (flag, path) in [
             ("--tls-ca", &self.tls_ca),
@@ -332,6 +343,27 @@ mod tests {
         let mut cfg = BusConfig::default();
         ZenohArgs::default().apply(&mut cfg);
         assert_eq!(cfg.time, None);
+        assert_eq!(cfg.time_file, None);
+    }
+
+    #[test]
+    fn a_clock_file_is_passed_on_and_excludes_a_time_scale() {
+        use clap::Parser;
+        #[derive(clap::Parser)]
+        struct Cli {
+            #[command(flatten)]
+            z: ZenohArgs,
+        }
+        let cli = Cli::try_parse_from(["x", "--time-file", "/tmp/clock"]).expect("parses");
+        let mut cfg = BusConfig::default();
+        cli.z.apply(&mut cfg);
+        assert_eq!(cfg.time_file, Some(PathBuf::from("/tmp/clock")));
+        assert_eq!(cfg.time, None);
+        assert_eq!(cli.z.to_args(), ["--time-file", "/tmp/clock"]);
+        let e = Cli::try_parse_from(["x", "--time-file", "/tmp/c", "--time-scale", "2"])
+            .err()
+            .expect("refused");
+        assert!(e.to_string().contains("--time-scale"), "{e}");
     }
 
     #[test]

@@ -81,9 +81,11 @@ where
 {
     let node_name = bus.node_name().to_owned();
     let status = StatusReporter::new(&bus).await?;
-    // On a run's simulated time (`--time-scale`) the period is in simulated seconds.
-    let mut tick = tokio::time::interval(node.period().div_f64(bus.clock().rate()));
-    tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
+    // On a run's simulated time (`--time-scale`, `--time-file`) the period is in
+    // simulated seconds; a paced clock's rate changes during the run, and the period in
+    // wall time with it.
+    let mut rate = bus.clock().rate();
+    let mut tick = wall_interval(node.period(), rate, tokio::time::Instant::now());
     let mut status_tick = tokio::time::interval(STATUS_PERIOD);
     status_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
     tokio::pin!(stop);
@@ -119,6 +121,12 @@ where
             _ = tick.tick() => {}
         }
         node.tick(bus.now_s());
+        let now_rate = bus.clock().rate();
+        if (now_rate - rate).abs() > 1e-3 * rate {
+            rate = now_rate;
+            let wall = node.period().div_f64(rate);
+            tick = wall_interval(node.period(), rate, tokio::time::Instant::now() + wall);
+        }
         let state = node.state();
         if state != reported {
             tracing::info!(node = %node_name, from = ?reported, to = ?state, "lifecycle");
@@ -139,6 +147,18 @@ where
     drop((node, status));
     bus.close().await?;
     Ok(final_report)
+}
+
+/// A tick every `period` of simulated time at `rate` simulated seconds per wall second,
+/// the first one at `first`.
+fn wall_interval(
+    period: Duration,
+    rate: f64,
+    first: tokio::time::Instant,
+) -> tokio::time::Interval {
+    let mut tick = tokio::time::interval_at(first, period.div_f64(rate));
+    tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
+    tick
 }
 
 /// Something to do every `period_s` on the node's clock, inside a faster tick (a

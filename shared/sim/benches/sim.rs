@@ -2,6 +2,10 @@
 //! first finger pressed into the mouse (one active contact), and of the cup grasp with
 //! all five fingertips in contact.
 //!
+//! The operator site's depth frame, piece by piece as `local_sim` makes one: the
+//! 640 x 480 render with the SR300 noise, the hand-in-view check, and the world's step
+//! with the true fingers retargeted (one frame period each).
+//!
 //! The remote camera views: posing the scene and rendering both default 320x240 views
 //! of the touching scene (arm at the simulator node's working posture), one view alone,
 //! and copying both frames into `rgb8` messages, against a baseline in the same run: a
@@ -39,6 +43,22 @@ fn bench(c: &mut Criterion) {
         "bench scene in contact"
     );
     c.bench_function("touching_step_1ms", |b| b.iter(|| touching.step_once()));
+
+    // The operator site's depth frame, piece by piece (what local_sim does per frame).
+    if let Ok(mut op) = teleop_sim::operator_site::OperatorWorld::new(Default::default()) {
+        op.step(2.0);
+        c.bench_function("operator_depth_frame_render_with_noise_640x480", |b| {
+            b.iter(|| op.render_depth().map(|d| d.len()))
+        });
+        c.bench_function("operator_hand_in_view", |b| b.iter(|| op.hand_in_view()));
+        c.bench_function("operator_step_and_true_shadow_joints_per_frame", |b| {
+            b.iter(|| {
+                op.step(1.0 / 30.0);
+                op.shadow_joints()
+            })
+        });
+        c.bench_function("operator_step_per_frame", |b| b.iter(|| op.step(1.0 / 30.0)));
+    }
 
     let cup_config = CupGraspConfig::default();
     let Ok(mut cup) = World::cup_grasp(&cup_config) else {

@@ -70,6 +70,12 @@ pub struct LaunchArgs {
     /// for no page. Default: the display's config (127.0.0.1:8088).
     #[arg(long)]
     pub display: Option<String>,
+    /// Run on simulated time as fast as this machine can carry the whole system: the
+    /// launcher sets the time's rate every half second from how busy the machine and
+    /// each node's process are (faster while there is room, slower when there is not;
+    /// not with --time-scale). The report gives the rates the run went through.
+    #[arg(long)]
+    pub as_fast_as_possible: bool,
 }
 
 /// This run's directory for the configs the launcher writes.
@@ -277,9 +283,20 @@ impl StatusLog {
 pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
     // One simulated time for every process of the run (`--time-scale`).
     let mut zenoh = zenoh.clone();
+    let paced_clock = if args.as_fast_as_possible {
+        if zenoh.time_scale.is_some() || zenoh.time_file.is_some() {
+            bail!(
+                "--as-fast-as-possible sets the run's time itself: give it without --time-scale or --time-file"
+            );
+        }
+        let (path, writer) = crate::clock_pacer::create_clock(&run_dir()?)?;
+        zenoh.time_file = Some(path);
+        Some(writer)
+    } else {
+        None
+    };
     zenoh.pin_time_origin();
     let zenoh = &zenoh;
-    let time_scale = zenoh.time_scale.unwrap_or(1.0);
     let mut cfg = BusConfig::default();
     zenoh.apply(&mut cfg);
     let bus = Bus::open(&format!("teleop_launch_{}", std::process::id()), &cfg).await?;
@@ -365,33 +382,49 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         println!("{line}");
         banner.push(line);
     }
+    let pacing = std::sync::Arc::new(std::sync::Mutex::new(
+        crate::clock_pacer::PacingSummary::default(),
+    ));
+    let wall_start = std::time::Instant::now();
+    let sim_start_s = bus.now_s();
+    let pacer = paced_clock.map(|writer| {
+        let mut pids: Vec<u32> = children.iter().filter_map(|(_, c)| c.id()).collect();
+        pids.push(std::process::id());
+        tokio::spawn(crate::clock_pacer::run(
+            writer,
+            pids,
+            crate::clock_pacer::PacerConfig::default(),
+            pacing.clone(),
+        ))
+    });
     // `--duration-s` is simulated time.
-    let duration = args
-        .duration_s
-        .map(|s| Duration::from_secs_f64(s.max(0.0) / time_scale));
+    let stop = until_simulated(
+        bus.clock().clone(),
+        args.duration_s.map(|s| sim_start_s + s.max(0.0)),
+    );
     let monitor = async {
         if args.quiet {
-            teleop_node::stop_signal(duration).await;
+            stop.await;
             Ok(())
         } else {
-            crate::inspect::monitor_until(&cfg, None, teleop_node::stop_signal(duration), &banner)
-                .await
+            crate::inspect::monitor_until(&cfg, None, stop, &banner).await
         }
     };
     let run_once = sim_config.is_some();
     let collect = async {
-        let mut done_since: Option<tokio::time::Instant> = None;
+        // Simulated time, as the task's.
+        let mut done_since: Option<f64> = None;
         loop {
             while let Some(r) = status.try_recv() {
                 // With a task run once: stop 1 s after the simulator reports it done.
                 if run_once && reports_task_done(&r.msg) {
-                    done_since.get_or_insert_with(tokio::time::Instant::now);
+                    done_since.get_or_insert_with(|| bus.now_s());
                 }
                 recorder.on_status(&r.msg);
                 log.record(r.msg);
             }
             recorder.poll();
-            if done_since.is_some_and(|t| t.elapsed() > Duration::from_secs(1)) {
+            if done_since.is_some_and(|t| bus.now_s() - t > 1.0) {
                 return;
             }
             tokio::time::sleep(Duration::from_millis(5)).await;
@@ -423,7 +456,16 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
     let outcomes = stop_all(&mut children, args.grace_s, &status, &mut log).await;
     print_summary(&outcomes);
     println!("{publishers}");
-    let report = recorder.finish(bus.now_s(), &log.finals);
+    let mut report = recorder.finish(bus.now_s(), &log.finals);
+    if let Some(task) = pacer {
+        task.abort();
+        // The mean rate: simulated over wall seconds of the run.
+        let wall_s = wall_start.elapsed().as_secs_f64();
+        if wall_s > 0.0 {
+            report.time_scale = (bus.now_s() - sim_start_s) / wall_s;
+        }
+        report.pacing = pacing.lock().ok().map(|p| p.clone());
+    }
     println!();
     print!("{}", report.text());
     if !args.no_report_files {
@@ -443,6 +485,28 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         bail!("not stopped gracefully: {}", bad.join(", "));
     }
     Ok(())
+}
+
+/// Completes at simulated time `end_s` on `clock` (never without one), or on Ctrl-C /
+/// SIGTERM.
+async fn until_simulated(clock: std::sync::Arc<dyn teleop_bus::Clock>, end_s: Option<f64>) {
+    let timer = async {
+        match end_s {
+            Some(end) => {
+                while clock.now_s() < end {
+                    // A fraction of the time left in wall seconds at the current rate,
+                    // at most 50 ms: the rate may change meanwhile.
+                    let left = ((end - clock.now_s()) / clock.rate()).clamp(0.001, 0.05);
+                    tokio::time::sleep(Duration::from_secs_f64(left)).await;
+                }
+            }
+            None => std::future::pending::<()>().await,
+        }
+    };
+    tokio::select! {
+        () = timer => {}
+        () = teleop_node::stop_signal(None) => {}
+    }
 }
 
 /// The topics the running nodes of the node table publish, against the topic table's

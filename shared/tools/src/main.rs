@@ -3,6 +3,7 @@
 
 mod bag;
 mod certs;
+mod clock_pacer;
 mod foxglove;
 mod inspect;
 mod launch;

@@ -81,6 +81,9 @@ pub struct RunReport {
     /// Simulated seconds per wall second (`--time-scale`; 1 = real time). Every time
     /// and latency in the report is in simulated time.
     pub time_scale: f64,
+    /// `teleop launch --as-fast-as-possible`: what the pacer did (then `time_scale` is
+    /// the run's mean rate).
+    pub pacing: Option<crate::clock_pacer::PacingSummary>,
     /// The command that recorded it: `teleop launch` (the system it started) or
     /// `teleop report` (a system started elsewhere).
     pub recorded_by: String,
@@ -662,7 +665,12 @@ impl RunReport {
 
     /// `""` in real time, else `" of simulated time at 0.5x real time"` and the like.
     fn time_scale_note(&self) -> String {
-        if (self.time_scale - 1.0).abs() < 1e-9 || self.time_scale == 0.0 {
+        if let Some(p) = &self.pacing {
+            format!(
+                " of simulated time as fast as possible: {:.2}x real time on average, {:.2}-{:.2}x in {} changes",
+                self.time_scale, p.min_rate, p.max_rate, p.changes
+            )
+        } else if (self.time_scale - 1.0).abs() < 1e-9 || self.time_scale == 0.0 {
             String::new()
         } else {
             format!(" of simulated time at {}x real time", self.time_scale)

@@ -144,7 +144,7 @@ fn tasks_run_once_and_meet_the_goals_in_the_report() {
         ("pick_and_place", "94", 13.0..40.0),
         ("pouring", "95", 18.0..45.0),
     ] {
-        task_meets_the_goals(task, domain, duration, &[]);
+        task_meets_the_goals(task, domain, duration, &[], &[]);
     }
 }
 
@@ -156,7 +156,7 @@ fn tasks_run_once_and_meet_the_goals_in_the_report() {
 fn a_task_on_simulated_time_twice_as_fast_meets_the_goals() {
     let _one = one_system();
     let started = std::time::Instant::now();
-    let json = task_meets_the_goals("fader", "98", 15.0..40.0, &["--time-scale", "2"]);
+    let json = task_meets_the_goals("fader", "98", 15.0..40.0, &["--time-scale", "2"], &[]);
     let wall_s = started.elapsed().as_secs_f64();
     assert_eq!(json["time_scale"], 2.0, "{json}");
     let sim_s = json["duration_s"].as_f64().expect("duration_s");
@@ -168,14 +168,55 @@ fn a_task_on_simulated_time_twice_as_fast_meets_the_goals() {
     );
 }
 
-/// Runs `task` once (on `domain`, with `extra` before `launch`), asserts every node
-/// stopped gracefully and the report's figures meet the local-site issue's goals;
-/// returns the report's JSON.
+/// `teleop launch --as-fast-as-possible`: the launcher paces the run's simulated time on
+/// the machine's load; every node follows the changing rate (one clock file), and the
+/// task meets every goal the real-time test asserts.
+#[test]
+fn a_task_as_fast_as_possible_meets_the_goals() {
+    let _one = one_system();
+    let started = std::time::Instant::now();
+    let json = task_meets_the_goals("fader", "89", 15.0..40.0, &[], &["--as-fast-as-possible"]);
+    let wall_s = started.elapsed().as_secs_f64();
+    let pacing = &json["pacing"];
+    let num = |v: &serde_json::Value| v.as_f64().unwrap_or_else(|| panic!("{pacing}"));
+    // The pacer measured the load every half second of the run and changed the rate.
+    let sim_s = num(&json["duration_s"]);
+    assert!(
+        num(&pacing["samples"]) >= 0.5 * sim_s / num(&pacing["max_rate"]),
+        "{pacing}"
+    );
+    assert!(num(&pacing["changes"]) >= 1.0, "{pacing}");
+    let (min, max, mean) = (
+        num(&pacing["min_rate"]),
+        num(&pacing["max_rate"]),
+        num(&json["time_scale"]),
+    );
+    assert!(
+        (0.25..=20.0).contains(&min) && min <= max && max <= 20.0,
+        "{pacing}"
+    );
+    // The report's mean rate is the run's simulated over its wall seconds: within the
+    // rates the pacer set (start-up and shut-down at the rates of their moments), and
+    // the whole command took at least the run's wall time.
+    assert!(
+        mean >= 0.9 * min.min(1.0) && mean <= 1.1 * max,
+        "{mean} {pacing}"
+    );
+    assert!(
+        wall_s >= sim_s / mean * 0.9,
+        "{wall_s} s wall, {sim_s} s at {mean}x"
+    );
+}
+
+/// Runs `task` once (on `domain`, with `extra` before `launch` and `launch_extra` after
+/// it), asserts every node stopped gracefully and the report's figures meet the
+/// local-site issue's goals; returns the report's JSON.
 fn task_meets_the_goals(
     task: &str,
     domain: &str,
     duration: std::ops::Range<f64>,
     extra: &[&str],
+    launch_extra: &[&str],
 ) -> serde_json::Value {
     let dir = std::env::temp_dir().join(format!(
         "teleop-report-test-{}-{task}-{domain}",
@@ -198,6 +239,7 @@ fn task_meets_the_goals(
         .map(std::ffi::OsStr::new),
     );
     args.push(dir.as_os_str());
+    args.extend(launch_extra.iter().map(std::ffi::OsStr::new));
     let stdout = launch_ok(&args);
     assert_every_node_stopped_gracefully(&stdout);
     let json: serde_json::Value = serde_json::from_str(
