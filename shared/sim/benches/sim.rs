@@ -57,7 +57,9 @@ fn bench(c: &mut Criterion) {
                 op.shadow_joints()
             })
         });
-        c.bench_function("operator_step_per_frame", |b| b.iter(|| op.step(1.0 / 30.0)));
+        c.bench_function("operator_step_per_frame", |b| {
+            b.iter(|| op.step(1.0 / 30.0))
+        });
     }
 
     let cup_config = CupGraspConfig::default();
