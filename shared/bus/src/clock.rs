@@ -44,8 +44,8 @@ impl Clock for SystemClock {
 /// period in simulated time), above 1 faster than real time.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ScaledClock {
-    origin_ns: i64,
-    scale: f64,
+    /// One segment for the whole run: from the origin on at `scale`.
+    segment: ClockSegment,
 }
 
 /// The scales a [`ScaledClock`] accepts, `[min, max]`.
@@ -55,23 +55,31 @@ impl ScaledClock {
     /// # Errors
     /// A text naming the scale when it is not within [`TIME_SCALE_RANGE`].
     pub fn new(origin_ns: i64, scale: f64) -> Result<Self, String> {
-        if scale.is_finite() && (TIME_SCALE_RANGE.0..=TIME_SCALE_RANGE.1).contains(&scale) {
-            Ok(Self { origin_ns, scale })
-        } else {
-            Err(format!(
-                "time scale must be in [{}, {}], got {scale}",
-                TIME_SCALE_RANGE.0, TIME_SCALE_RANGE.1
-            ))
-        }
+        check_rate(scale)?;
+        Ok(Self {
+            segment: ClockSegment {
+                wall_ns: origin_ns,
+                sim_ns: origin_ns,
+                rate: scale,
+            },
+        })
     }
 
     /// The time at wall-clock time `wall_ns`, ns since the epoch.
     pub fn at(&self, wall_ns: i64) -> i64 {
-        // Differences of ns timestamps within a run lose nothing that matters as f64
-        // (< 1 ns per 100 days).
-        #[allow(clippy::cast_precision_loss, clippy::cast_possible_truncation)]
-        let scaled = ((wall_ns - self.origin_ns) as f64 * self.scale).round() as i64;
-        self.origin_ns + scaled
+        self.segment.at(wall_ns)
+    }
+}
+
+/// `Err` naming `rate` unless it is within [`TIME_SCALE_RANGE`].
+fn check_rate(rate: f64) -> Result<(), String> {
+    if rate.is_finite() && (TIME_SCALE_RANGE.0..=TIME_SCALE_RANGE.1).contains(&rate) {
+        Ok(())
+    } else {
+        Err(format!(
+            "time scale must be in [{}, {}], got {rate}",
+            TIME_SCALE_RANGE.0, TIME_SCALE_RANGE.1
+        ))
     }
 }
 
@@ -81,7 +89,7 @@ impl Clock for ScaledClock {
     }
 
     fn rate(&self) -> f64 {
-        self.scale
+        self.segment.rate
     }
 }
 
@@ -97,7 +105,8 @@ pub struct ClockSegment {
 impl ClockSegment {
     /// Simulated time at wall-clock time `wall_ns`.
     pub fn at(&self, wall_ns: i64) -> i64 {
-        // Differences within a run lose nothing that matters as f64.
+        // Differences of ns timestamps within a run lose nothing that matters as f64
+        // (< 1 ns per 100 days).
         #[allow(clippy::cast_precision_loss, clippy::cast_possible_truncation)]
         let d = ((wall_ns - self.wall_ns) as f64 * self.rate).round() as i64;
         self.sim_ns + d
@@ -164,15 +173,7 @@ fn parse_clock_file(
         let rate: f64 = rate
             .parse()
             .map_err(|e| bad(n, format!("rate {rate:?}: {e}")))?;
-        if !(rate.is_finite() && (TIME_SCALE_RANGE.0..=TIME_SCALE_RANGE.1).contains(&rate)) {
-            return Err(bad(
-                n,
-                format!(
-                    "rate {rate} outside [{}, {}]",
-                    TIME_SCALE_RANGE.0, TIME_SCALE_RANGE.1
-                ),
-            ));
-        }
+        check_rate(rate).map_err(|e| bad(n, format!("rate {rate} outside the range: {e}")))?;
         if segments.last().is_some_and(|p| p.wall_ns >= wall_ns) {
             return Err(bad(n, "segments must be in increasing wall_ns".into()));
         }

@@ -85,7 +85,7 @@ where
     // simulated seconds; a paced clock's rate changes during the run, and the period in
     // wall time with it.
     let mut rate = bus.clock().rate();
-    let mut tick = wall_interval(node.period(), rate, tokio::time::Instant::now());
+    let mut tick = wall_interval(node.period().div_f64(rate), tokio::time::Instant::now());
     let mut status_tick = tokio::time::interval(STATUS_PERIOD);
     status_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
     tokio::pin!(stop);
@@ -125,7 +125,7 @@ where
         if (now_rate - rate).abs() > 1e-3 * rate {
             rate = now_rate;
             let wall = node.period().div_f64(rate);
-            tick = wall_interval(node.period(), rate, tokio::time::Instant::now() + wall);
+            tick = wall_interval(wall, tokio::time::Instant::now() + wall);
         }
         let state = node.state();
         if state != reported {
@@ -149,14 +149,10 @@ where
     Ok(final_report)
 }
 
-/// A tick every `period` of simulated time at `rate` simulated seconds per wall second,
-/// the first one at `first`.
-fn wall_interval(
-    period: Duration,
-    rate: f64,
-    first: tokio::time::Instant,
-) -> tokio::time::Interval {
-    let mut tick = tokio::time::interval_at(first, period.div_f64(rate));
+/// A tick every `period` of wall time (a node's period over its clock's rate), the
+/// first one at `first`; missed ticks are skipped.
+fn wall_interval(period: Duration, first: tokio::time::Instant) -> tokio::time::Interval {
+    let mut tick = tokio::time::interval_at(first, period);
     tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
     tick
 }

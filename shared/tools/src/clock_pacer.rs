@@ -18,6 +18,8 @@ use std::path::Path;
 use serde::Serialize;
 use teleop_bus::PacedClockWriter;
 
+use crate::proc_stat::{self, MachineTicks};
+
 /// How the pacer decides.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PacerConfig {
@@ -130,94 +132,58 @@ impl Pacer {
     }
 }
 
-/// CPU time counters of the machine and of the run's processes, from `/proc`.
-#[derive(Debug, Default)]
+/// The load of the machine and of the run's processes between two calls, from
+/// `/proc` ([`crate::proc_stat`]).
+#[derive(Debug)]
 pub struct CpuSampler {
-    last: Option<(std::time::Instant, CpuTimes)>,
+    ticks_per_s: f64,
+    last: Option<Sample>,
 }
 
-#[derive(Debug, Clone, Default)]
-struct CpuTimes {
-    /// Busy and total jiffies over all cores (`/proc/stat`).
-    machine_busy: u64,
-    machine_total: u64,
-    /// utime + stime of each process, in clock ticks (`/proc/<pid>/stat`).
+#[derive(Debug, Clone)]
+struct Sample {
+    at: std::time::Instant,
+    machine: MachineTicks,
+    /// utime + stime of each process that could be read.
     processes: Vec<(u32, u64)>,
 }
 
-/// Linux reports process times in USER_HZ ticks, 100 per second on every architecture
-/// it runs on (the kernel's `CLOCKS_PER_SEC` ABI value).
-const USER_HZ: f64 = 100.0;
-
 impl CpuSampler {
+    pub fn new() -> Self {
+        Self {
+            ticks_per_s: proc_stat::clock_ticks_per_s(),
+            last: None,
+        }
+    }
+
     /// The load since the last call (`None` on the first call, or without `/proc`).
     pub fn sample(&mut self, pids: &[u32]) -> Option<Load> {
-        let now = std::time::Instant::now();
-        let times = read_times(pids)?;
-        let prev = self.last.replace((now, times.clone()));
-        let (then, before) = prev?;
-        let wall_s = now.duration_since(then).as_secs_f64();
-        let total = times.machine_total.saturating_sub(before.machine_total);
-        if total == 0 || wall_s <= 0.0 {
+        let now = Sample {
+            at: std::time::Instant::now(),
+            machine: proc_stat::machine_ticks().ok()?,
+            processes: pids
+                .iter()
+                .filter_map(|&pid| Some((pid, proc_stat::process_ticks(pid).ok()?)))
+                .collect(),
+        };
+        let before = self.last.replace(now.clone())?;
+        let wall_s = now.at.duration_since(before.at).as_secs_f64();
+        if now.machine.total == before.machine.total || wall_s <= 0.0 {
             return None;
         }
-        let machine = times.machine_busy.saturating_sub(before.machine_busy) as f64 / total as f64;
-        let busiest_process = times
+        let busiest_process = now
             .processes
             .iter()
             .filter_map(|(pid, t)| {
                 let (_, b) = before.processes.iter().find(|(p, _)| p == pid)?;
-                Some(t.saturating_sub(*b) as f64 / USER_HZ / wall_s)
+                Some(t.saturating_sub(*b) as f64 / self.ticks_per_s / wall_s)
             })
             .fold(0.0, f64::max);
         Some(Load {
-            machine,
+            machine: now.machine.busy_fraction_since(&before.machine),
             busiest_process,
         })
     }
-}
-
-fn read_times(pids: &[u32]) -> Option<CpuTimes> {
-    let stat = std::fs::read_to_string("/proc/stat").ok()?;
-    let (machine_busy, machine_total) = parse_proc_stat(&stat)?;
-    let processes = pids
-        .iter()
-        .filter_map(|pid| {
-            let s = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
-            Some((*pid, parse_pid_stat(&s)?))
-        })
-        .collect();
-    Some(CpuTimes {
-        machine_busy,
-        machine_total,
-        processes,
-    })
-}
-
-/// Busy and total jiffies from `/proc/stat`'s `cpu` line (idle and iowait are not busy).
-fn parse_proc_stat(text: &str) -> Option<(u64, u64)> {
-    let line = text.lines().find(|l| l.starts_with("cpu "))?;
-    let v: Vec<u64> = line
-        .split_whitespace()
-        .skip(1)
-        .map(str::parse)
-        .collect::<Result<_, _>>()
-        .ok()?;
-    // user nice system idle iowait irq softirq steal (guest time is inside user).
-    let total: u64 = v.iter().take(8).sum();
-    let idle = v.get(3)? + v.get(4).copied().unwrap_or(0);
-    Some((total.saturating_sub(idle), total))
-}
-
-/// utime + stime from `/proc/<pid>/stat` (fields 14 and 15; the command name in
-/// parentheses may hold spaces, so count from its closing parenthesis).
-fn parse_pid_stat(text: &str) -> Option<u64> {
-    let rest = &text[text.rfind(')')? + 1..];
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    // After ")": state is field 3, so utime (14) is index 11, stime (15) index 12.
-    let utime: u64 = f.get(11)?.parse().ok()?;
-    let stime: u64 = f.get(12)?.parse().ok()?;
-    Some(utime + stime)
 }
 
 /// Paces `writer`'s clock on the load of the processes `pids` until the future is
@@ -229,7 +195,7 @@ pub async fn run(
     out: std::sync::Arc<std::sync::Mutex<PacingSummary>>,
 ) {
     let mut pacer = Pacer::new(cfg, writer.rate_at(teleop_msgs::unix_nanos_now()));
-    let mut sampler = CpuSampler::default();
+    let mut sampler = CpuSampler::new();
     let mut tick = tokio::time::interval(std::time::Duration::from_millis(500));
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     loop {
@@ -306,18 +272,8 @@ mod tests {
     }
 
     #[test]
-    fn proc_files_are_read_and_odd_ones_refused() {
-        assert_eq!(
-            parse_proc_stat("cpu  100 5 50 800 20 3 2 0 0 0\ncpu0 1 2 3 4\n"),
-            Some((160, 980))
-        );
-        assert_eq!(parse_proc_stat("cpu0 1 2 3\n"), None);
-        assert_eq!(parse_proc_stat("cpu  1 x 3 4\n"), None);
-        let line = "4242 (a node (x)) S 1 4242 4242 0 -1 4194560 1 0 0 0 117 23 0 0 20 0 9 0";
-        assert_eq!(parse_pid_stat(line), Some(140));
-        assert_eq!(parse_pid_stat("4242 (x) S 1"), None);
-        // The real files of this process and machine.
-        let mut s = CpuSampler::default();
+    fn the_sampler_measures_a_busy_process() {
+        let mut s = CpuSampler::new();
         let me = std::process::id();
         assert!(
             s.sample(&[me]).is_none(),

@@ -7,6 +7,7 @@ mod clock_pacer;
 mod foxglove;
 mod inspect;
 mod launch;
+mod proc_stat;
 mod progress;
 mod publish;
 mod record;

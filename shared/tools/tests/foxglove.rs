@@ -383,44 +383,34 @@ async fn a_subscribed_client_gets_the_cdr_of_the_bus_with_its_ros2_schema() {
 
 #[test]
 fn an_unknown_topic_is_refused_by_name() {
-    let out = Command::new(env!("CARGO_BIN_EXE_teleop"))
-        .args([
-            "--no-multicast-scouting",
-            "foxglove",
-            "--port",
-            "0",
-            "/teleop/status",
-            "/teleop/no_such_topic",
-        ])
-        .env("RUST_BACKTRACE", "0")
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let (err, out) = foxglove_fails(&["--port", "0", "/teleop/status", "/teleop/no_such_topic"]);
     assert!(
         err.contains("unknown topic `/teleop/no_such_topic`"),
         "{err}"
     );
-    assert!(!String::from_utf8_lossy(&out.stdout).contains("ws://"));
+    assert!(!out.contains("ws://"));
+}
+
+/// Runs `teleop foxglove ARGS`, asserts it failed; its stderr and stdout.
+fn foxglove_fails(args: &[&str]) -> (String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_teleop"))
+        .args(["--no-multicast-scouting", "foxglove"])
+        .args(args)
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .unwrap();
+    assert!(!out.status.success(), "teleop foxglove {args:?} succeeded");
+    (
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+    )
 }
 
 #[test]
 fn a_port_in_use_is_a_clear_error() {
     let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let port = taken.local_addr().unwrap().port();
-    let out = Command::new(env!("CARGO_BIN_EXE_teleop"))
-        .args([
-            "--no-multicast-scouting",
-            "foxglove",
-            "--port",
-            &port.to_string(),
-            "/teleop/status",
-        ])
-        .env("RUST_BACKTRACE", "0")
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let (err, _) = foxglove_fails(&["--port", &port.to_string(), "/teleop/status"]);
     assert!(
         err.contains(&format!("port {port} on 127.0.0.1 is in use")),
         "{err}"

@@ -41,6 +41,10 @@ use nix::unistd::Pid;
 use serde::Serialize;
 use teleop_interfaces::nodes::NODES;
 
+// /proc CPU times, shared with the `teleop` binary (the crate has no library).
+#[path = "../proc_stat.rs"]
+mod proc_stat;
+
 /// The recorder's overhead at the full system rate (CPU, memory, MB/s written, drops),
 /// against `teleop record --discard` in the same run.
 #[derive(Debug, Parser)]
@@ -218,7 +222,7 @@ fn main() -> Result<()> {
         None => std::env::temp_dir().join(format!("record_bench_{}", std::process::id())),
     };
     std::fs::create_dir_all(&work).with_context(|| format!("creating {}", work.display()))?;
-    let tck = clock_ticks_per_s();
+    let tck = proc_stat::clock_ticks_per_s();
     let loadavg_start = loadavg();
 
     // The whole system, long enough for every run (it is stopped at the end).
@@ -613,17 +617,17 @@ fn measure(
     std::thread::sleep(Duration::from_secs_f64(cli.warmup_s));
 
     let (cpu0, wall0, size0, machine0) = (
-        cpu_ticks(pid)?,
+        proc_stat::process_ticks(pid)?,
         Instant::now(),
         dir_bytes(&bag),
-        machine_ticks()?,
+        proc_stat::machine_ticks()?,
     );
     std::thread::sleep(Duration::from_secs_f64(cli.seconds));
     let (cpu1, wall1, size1, machine1) = (
-        cpu_ticks(pid)?,
+        proc_stat::process_ticks(pid)?,
         Instant::now(),
         dir_bytes(&bag),
-        machine_ticks()?,
+        proc_stat::machine_ticks()?,
     );
     let peak_rss_kb = vm_hwm_kb(pid)?;
     let stopped_at = Instant::now();
@@ -667,7 +671,7 @@ fn measure(
         messages_per_s: s.messages as f64 / tapped_s,
         received_bytes_per_s: s.bytes as f64 / tapped_s,
         dropped: s.dropped,
-        machine_busy_pct: machine1.busy_pct_since(&machine0),
+        machine_busy_pct: machine1.busy_fraction_since(&machine0) * 100.0,
         summary,
     };
     Ok(run)
@@ -701,27 +705,6 @@ fn parse_summary(line: &str) -> Result<Summary> {
     })
 }
 
-/// utime + stime of a process, clock ticks.
-fn cpu_ticks(pid: u32) -> Result<u64> {
-    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat"))
-        .with_context(|| format!("reading /proc/{pid}/stat (has the recorder ended?)"))?;
-    // The command name is in parentheses and may hold spaces: count after the last one.
-    let rest = stat
-        .rsplit_once(')')
-        .map(|(_, r)| r)
-        .context("/proc/PID/stat without a command name")?;
-    // Fields from 3 (state) on; utime and stime are fields 14 and 15.
-    let fields: Vec<&str> = rest.split_whitespace().collect();
-    let field = |n: usize| -> Result<u64> {
-        fields
-            .get(n - 3)
-            .context("/proc/PID/stat too short")?
-            .parse()
-            .context("/proc/PID/stat: a field that is not a number")
-    };
-    Ok(field(14)? + field(15)?)
-}
-
 /// VmHWM of a process, kB.
 fn vm_hwm_kb(pid: u32) -> Result<u64> {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status"))
@@ -732,46 +715,6 @@ fn vm_hwm_kb(pid: u32) -> Result<u64> {
         .and_then(|v| v.split_whitespace().next())
         .and_then(|v| v.parse().ok())
         .context("no VmHWM in /proc/PID/status")
-}
-
-/// The whole machine's CPU time (/proc/stat's first line), clock ticks.
-#[derive(Debug, Clone, Copy)]
-struct MachineTicks {
-    busy: u64,
-    total: u64,
-}
-
-impl MachineTicks {
-    fn busy_pct_since(&self, before: &MachineTicks) -> f64 {
-        let total = self.total.saturating_sub(before.total);
-        if total == 0 {
-            return 0.0;
-        }
-        #[allow(clippy::cast_precision_loss)]
-        let pct = self.busy.saturating_sub(before.busy) as f64 / total as f64 * 100.0;
-        pct
-    }
-}
-
-fn machine_ticks() -> Result<MachineTicks> {
-    let stat = std::fs::read_to_string("/proc/stat").context("reading /proc/stat")?;
-    let line = stat
-        .lines()
-        .find(|l| l.starts_with("cpu "))
-        .context("no cpu line in /proc/stat")?;
-    // user nice system idle iowait irq softirq steal (guest time is inside user).
-    let v: Vec<u64> = line
-        .split_whitespace()
-        .skip(1)
-        .take(8)
-        .map(|x| x.parse().unwrap_or(0))
-        .collect();
-    let total: u64 = v.iter().sum();
-    let idle = v.get(3).copied().unwrap_or(0) + v.get(4).copied().unwrap_or(0);
-    Ok(MachineTicks {
-        busy: total - idle,
-        total,
-    })
 }
 
 /// The size of the files in a directory (and below), bytes; 0 if it does not exist.
@@ -787,25 +730,6 @@ fn dir_bytes(dir: &Path) -> u64 {
             Err(_) => 0,
         })
         .sum()
-}
-
-/// Clock ticks per second of /proc's CPU times (`getconf CLK_TCK`; 100 if unknown).
-fn clock_ticks_per_s() -> f64 {
-    Command::new("getconf")
-        .arg("CLK_TCK")
-        .output()
-        .ok()
-        .and_then(|o| {
-            String::from_utf8_lossy(&o.stdout)
-                .trim()
-                .parse::<f64>()
-                .ok()
-        })
-        .filter(|t| *t > 0.0)
-        .unwrap_or_else(|| {
-            eprintln!("record_bench: getconf CLK_TCK failed: taking 100 ticks/s");
-            100.0
-        })
 }
 
 fn loadavg() -> String {
