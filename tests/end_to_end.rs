@@ -529,19 +529,21 @@ async fn the_operator_display_acknowledges_the_views_and_the_publisher_paces_by_
         .await
         .unwrap();
     let sim_task = tokio::spawn(sim_node::run(sim, Some(Duration::from_secs(6))));
-    let feedback_task = tokio::spawn(feedback_node::run(
-        feedback,
-        Some(Duration::from_millis(5500)),
-    ));
-    // The display outlives the publisher, so every view sent can be acknowledged. Each
-    // node's time counts from the end of its own start-up, which may take a few hundred
-    // milliseconds longer for one than the other on a loaded machine: 0.6 s of margin
-    // (with 0.2 s, a fresh-clone CI run once saw the last 10 of 164 views unanswered),
-    // within the display's feedback timeout (1 s), so it is still Active at its stop.
-    let display_task = tokio::spawn(operator_display::run(
-        display,
-        Some(Duration::from_millis(6100)),
-    ));
+    let (feedback_done, feedback_ended) = tokio::sync::oneshot::channel::<()>();
+    let feedback_task = tokio::spawn(async move {
+        let sent = feedback_node::run(feedback, Some(Duration::from_millis(5500))).await;
+        let _ = feedback_done.send(());
+        sent
+    });
+    // The display outlives the publisher, so every view sent can be acknowledged: it
+    // stops 0.3 s after the publisher has (timers of their own would not do: each
+    // node's time counts from the end of its own start-up, which on a loaded machine
+    // may take a few hundred milliseconds longer for one than the other), within its
+    // feedback timeout (1 s), so it is still Active at its stop.
+    let display_task = tokio::spawn(operator_display::run_until(display, async move {
+        let _ = feedback_ended.await;
+        tokio::time::sleep(Duration::from_millis(300)).await;
+    }));
     tokio::time::sleep(Duration::from_secs(3)).await;
     for i in 0..3 {
         forged

@@ -245,22 +245,22 @@ impl LocalSimNode {
             k.height(),
             depth,
         );
-        let joints = world.shadow_joints()?;
         self.last_render_us = u64::try_from(started.elapsed().as_micros()).unwrap_or(u64::MAX);
-        // The true fingers at the capture time of this frame, put on the bus just
-        // before the frame: the report measures "frame on the bus -> targets" from
-        // this sample's send time (a little early, never late).
-        self.truth_joints_pub.put(&JointState {
-            header: Header::new(stamp(now_s), ""),
-            name: SHADOW_FINGER_JOINTS
-                .iter()
-                .map(|s| (*s).to_owned())
-                .collect(),
-            position: joints.to_vec(),
-            velocity: vec![],
-            effort: vec![],
-        })?;
-        publisher.put(&image)?;
+        // The frame goes on the bus as soon as it exists; the true fingers at its
+        // capture time (retargeting them takes about a millisecond) follow, with the
+        // frame's send time as their source timestamp, so the report measures "frame on
+        // the bus -> targets" from the frame's own send time.
+        let sent_ns = publisher.now_ns();
+        publisher.put_at(&image, sent_ns)?;
+        let joints = world.shadow_joints()?;
+        self.truth_joints_pub.put_at(
+            &JointState::positions(
+                Header::new(stamp(now_s), ""),
+                &SHADOW_FINGER_JOINTS,
+                &joints,
+            ),
+            sent_ns,
+        )?;
         self.counters.depth_frames += 1;
         if view.fully {
             self.counters.frames_hand_fully_in_view += 1;

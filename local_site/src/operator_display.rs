@@ -739,6 +739,15 @@ pub async fn run(
     cfg: OperatorDisplayConfig,
     duration: Option<Duration>,
 ) -> anyhow::Result<FinalReport> {
+    run_until(cfg, teleop_node::stop_signal(duration)).await
+}
+
+/// Runs the display until `stop` completes (what [`run`] does with a timer and the
+/// process's signals; a test stops it when the peer it watches has stopped).
+pub async fn run_until(
+    cfg: OperatorDisplayConfig,
+    stop: impl std::future::Future<Output = ()>,
+) -> anyhow::Result<FinalReport> {
     let bus = Bus::open(&cfg.node_name, &cfg.bus).await?;
     let mut page_error = String::new();
     let (web, server) = if cfg.http_listen.is_empty() {
@@ -772,7 +781,7 @@ pub async fn run(
     };
     let mut node = OperatorDisplayNode::new(&cfg, &bus, web).await?;
     node.last_error = page_error;
-    let report = teleop_node::run(bus, node, teleop_node::stop_signal(duration)).await;
+    let report = teleop_node::run(bus, node, stop).await;
     if let Some((stop_tx, task)) = server {
         let _ = stop_tx.send(());
         // Open sockets do not hold the stop up.

@@ -925,19 +925,14 @@ impl<M: JointModel> HandInferenceNode<M> {
                 joints, clamped, ..
             }) => {
                 self.counters.clamped_joints += u64::from(clamped);
-                let msg = JointState {
-                    header: Header {
+                let msg = JointState::positions(
+                    Header {
                         stamp: image.header.stamp,
                         frame_id: String::new(),
                     },
-                    name: SHADOW_FINGER_JOINTS
-                        .iter()
-                        .map(|s| (*s).to_owned())
-                        .collect(),
-                    position: joints.to_vec(),
-                    velocity: vec![],
-                    effort: vec![],
-                };
+                    &SHADOW_FINGER_JOINTS,
+                    &joints,
+                );
                 if let Err(e) = self.targets.put(&msg) {
                     self.counters.publish_errors += 1;
                     return FrameOutcome::Failed(format!("publishing the targets: {e}"));

@@ -72,6 +72,14 @@ pub struct ZenohSettings {
     /// How soon a lost connection (to the site router, or a router's to the other
     /// site) is dialled again.
     pub reconnect: ReconnectSettings,
+    /// Zenoh shared memory with peers on the same host: a message of 3 KB or more (a
+    /// depth frame, a camera view) goes to a peer process on this machine as a
+    /// reference to a buffer in `/dev/shm` instead of in fragments through a socket
+    /// (docs/benchmarks.md, bus section). Each end must allow it; a peer on another
+    /// host, or in another container (its own `/dev/shm`), fails Zenoh's probe and gets
+    /// the bytes over the network as before. Costs a 16 MiB pool in `/dev/shm` per
+    /// process that sends such messages.
+    pub shared_memory: bool,
 }
 
 /// The redial schedule after a connection is lost or refused: the first attempt
@@ -120,6 +128,7 @@ impl Default for ZenohSettings {
             tls: None,
             batch_bytes: None,
             reconnect: ReconnectSettings::default(),
+            shared_memory: true,
         }
     }
 }
@@ -236,6 +245,10 @@ impl ZenohSettings {
         // (docs/benchmarks.md, bus section). Memory cost: up to 1 MiB per link.
         set("transport/link/tx/queue/size/data_low", "16".into())?;
         set("transport/link/rx/buffer_size", "1048576".into())?;
+        set(
+            "transport/shared_memory/enabled",
+            self.shared_memory.to_string(),
+        )?;
         if let Some(b) = self.batch_bytes {
             if b < 1024 {
                 return Err(ConfigError::OutOfRange {
@@ -541,6 +554,22 @@ mod tests {
         let retry: serde_json::Value =
             serde_json::from_str(&cfg.get_json("connect/retry").expect("retry")).expect("json");
         assert_eq!(retry["period_max_ms"], 500);
+        // Shared memory with same-host peers is on unless a node turns it off.
+        assert_eq!(
+            cfg.get_json("transport/shared_memory/enabled")
+                .expect("shm"),
+            "true"
+        );
+        let off = ZenohSettings {
+            shared_memory: false,
+            ..Default::default()
+        };
+        let cfg = off.to_zenoh().expect("valid");
+        assert_eq!(
+            cfg.get_json("transport/shared_memory/enabled")
+                .expect("shm"),
+            "false"
+        );
         for (bad, named) in [
             (
                 ZenohSettings {

@@ -608,6 +608,11 @@ impl<T: Message> Publisher<T> {
         self.gid
     }
 
+    /// Now on the clock this publisher stamps its samples with (the node's), ns.
+    pub fn now_ns(&self) -> i64 {
+        self.clock.now_ns()
+    }
+
     /// Publishes `msg` now, on the node's clock (non-blocking: congestion drops the
     /// sample).
     ///

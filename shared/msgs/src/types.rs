@@ -274,6 +274,20 @@ message!(
     ]
 );
 
+impl JointState {
+    /// Positions only (no velocities or efforts), `name[i]` for `position[i]`.
+    #[must_use]
+    pub fn positions(header: Header, names: &[&str], position: &[f64]) -> Self {
+        Self {
+            header,
+            name: names.iter().map(|s| (*s).to_owned()).collect(),
+            position: position.to_vec(),
+            velocity: Vec::new(),
+            effort: Vec::new(),
+        }
+    }
+}
+
 /// `sensor_msgs/msg/Image`. Depth is `16UC1` in millimetres (0 = no return) or `32FC1`
 /// in metres; colour is `rgb8`.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]

@@ -44,6 +44,10 @@ pub struct ZenohArgs {
     /// Disable multicast scouting (use with --connect).
     #[arg(long)]
     pub no_multicast_scouting: bool,
+    /// Send large messages to peers on this host through sockets, not Zenoh shared
+    /// memory (overrides the config's `shared_memory`).
+    #[arg(long)]
+    pub no_shared_memory: bool,
     /// ROS 2 domain id (overrides the config file).
     #[arg(long)]
     pub domain_id: Option<u32>,
@@ -101,6 +105,9 @@ impl ZenohArgs {
         }
         if self.no_multicast_scouting {
             cfg.zenoh.multicast_scouting = false;
+        }
+        if self.no_shared_memory {
+            cfg.zenoh.shared_memory = false;
         }
         if let Some(d) = self.domain_id {
             cfg.domain_id = d;
@@ -160,6 +167,9 @@ impl ZenohArgs {
         }
         if self.no_multicast_scouting {
             out.push("--no-multicast-scouting".into());
+        }
+        if self.no_shared_memory {
+            out.push("--no-shared-memory".into());
         }
         if let Some(d) = self.domain_id {
             out.extend(["--domain-id".into(), d.to_string()]);
@@ -276,6 +286,7 @@ mod tests {
             mode: Some(ModeArg::Client),
             connect: vec!["tcp/127.0.0.1:7447".into()],
             no_multicast_scouting: true,
+            no_shared_memory: true,
             domain_id: Some(7),
             hardware_interface: vec!["127.0.0.0/8".into()],
             time_scale: Some(0.5),
@@ -287,6 +298,7 @@ mod tests {
         assert_eq!(cfg.zenoh.mode, Mode::Client);
         assert_eq!(cfg.domain_id, 7);
         assert!(!cfg.zenoh.multicast_scouting);
+        assert!(!cfg.zenoh.shared_memory);
         assert_eq!(cfg.zenoh.hardware_interfaces, ["127.0.0.0/8"]);
         assert_eq!(
             cfg.time,
@@ -304,6 +316,7 @@ mod tests {
                 "--connect",
                 "tcp/127.0.0.1:7447",
                 "--no-multicast-scouting",
+                "--no-shared-memory",
                 "--domain-id",
                 "7",
                 "--hardware-interface",

@@ -123,6 +123,10 @@ struct Cli {
     /// `transport/unicast/lowlatency`.
     #[arg(long, value_name = "FILE")]
     zenoh_config: Option<PathBuf>,
+    /// Both sessions without Zenoh shared memory (the images go through the socket in
+    /// fragments, as between hosts): the baseline of the bus's default.
+    #[arg(long)]
+    no_shared_memory: bool,
     /// ROS 2 domain id of the benchmark's keys.
     #[arg(long, default_value_t = 142)]
     domain_id: u32,
@@ -173,6 +177,8 @@ struct Settings {
     no_images: bool,
     quick: bool,
     zenoh_config: Option<PathBuf>,
+    /// Zenoh shared memory between the two processes (the bus's default).
+    shared_memory: bool,
     domain_id: u32,
 }
 
@@ -193,6 +199,7 @@ impl Settings {
             no_images: cli.no_images,
             quick: cli.quick,
             zenoh_config: cli.zenoh_config.clone(),
+            shared_memory: !cli.no_shared_memory,
             domain_id: cli.domain_id,
         };
         if s.pose_samples == 0 || s.image_frames == 0 {
@@ -218,6 +225,7 @@ fn bus_config(listen: Vec<String>, connect: Vec<String>, cli: &Cli) -> BusConfig
             connect,
             multicast_scouting: false,
             config_file: cli.zenoh_config.clone(),
+            shared_memory: !cli.no_shared_memory,
             ..Default::default()
         },
         ..Default::default()
@@ -1126,7 +1134,7 @@ fn print_table(r: &Report) {
         "bus_latency: 2 processes on 127.0.0.1; zenoh peer-to-peer over TCP vs raw sockets (stop-and-wait ping-pong)"
     );
     println!(
-        "machine: {} CPUs, kernel {}, load {} -> {}; {} pose samples @ {} Hz, {} depth frames @ {} Hz{}",
+        "machine: {} CPUs, kernel {}, load {} -> {}; {} pose samples @ {} Hz, {} depth frames @ {} Hz, zenoh shared memory {}{}",
         r.machine.cpus,
         r.machine.kernel,
         r.machine.loadavg_start,
@@ -1135,6 +1143,7 @@ fn print_table(r: &Report) {
         s.pose_rate_hz,
         s.image_frames,
         s.image_rate_hz,
+        if s.shared_memory { "on" } else { "off" },
         s.zenoh_config
             .as_ref()
             .map(|p| format!(", zenoh config {}", p.display()))
@@ -1263,6 +1272,9 @@ impl EchoChild {
             .args(["--domain-id", &cli.domain_id.to_string()]);
         if let Some(p) = &cli.zenoh_config {
             cmd.arg("--zenoh-config").arg(p);
+        }
+        if cli.no_shared_memory {
+            cmd.arg("--no-shared-memory");
         }
         let mut child = cmd
             .stdin(Stdio::piped())
