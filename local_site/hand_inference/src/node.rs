@@ -317,6 +317,70 @@ pub fn resolve_model_path(path: &Path) -> Result<PathBuf, NodeError> {
     })
 }
 
+/// The offline evaluation `hand_eval` writes beside a model (`report.json`): which
+/// model each row is of (`--model NAME=PATH` in its command) and its mean error.
+#[derive(Debug, Deserialize)]
+struct OfflineEvaluation {
+    command: String,
+    rows: Vec<OfflineRow>,
+}
+
+#[derive(Debug, Deserialize)]
+struct OfflineRow {
+    model: String,
+    dataset: String,
+    mean_error_rad: f64,
+}
+
+/// The model's mean joint error on its offline test set, from the `report.json`
+/// `hand_eval` wrote beside it (the row of dataset `test` for the `--model NAME=PATH`
+/// whose file is this model's): what the closed loop's hand joint error is judged
+/// against. `Ok(None)` when there is no such file or row (a model evaluated nowhere).
+///
+/// # Errors
+/// The file exists but cannot be read or parsed (named), or its error is not a
+/// positive finite number.
+pub fn offline_test_error(model: &Path) -> Result<Option<f64>, String> {
+    let path = model.with_file_name("report.json");
+    let text = match std::fs::read_to_string(&path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(format!("{}: {e}", path.display())),
+    };
+    let eval: OfflineEvaluation =
+        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    let file = model.file_name();
+    let mut words = eval.command.split_whitespace();
+    let mut name = None;
+    while let Some(w) = words.next() {
+        if w == "--model"
+            && let Some((n, p)) = words.next().and_then(|v| v.split_once('='))
+            && Path::new(p).file_name() == file
+        {
+            name = Some(n.to_owned());
+            break;
+        }
+    }
+    let Some(name) = name else {
+        return Ok(None);
+    };
+    match eval
+        .rows
+        .iter()
+        .find(|r| r.model == name && r.dataset == "test")
+    {
+        Some(r) if r.mean_error_rad.is_finite() && r.mean_error_rad > 0.0 => {
+            Ok(Some(r.mean_error_rad))
+        }
+        Some(r) => Err(format!(
+            "{}: test error of {name} is {} (not a positive number)",
+            path.display(),
+            r.mean_error_rad
+        )),
+        None => Ok(None),
+    }
+}
+
 /// Loads the configured ONNX model into an estimator.
 ///
 /// # Errors
@@ -767,6 +831,8 @@ pub struct HandInferenceNode<M: JointModel> {
     /// Woken by each arriving depth frame: the frame is processed at once.
     wake: Arc<tokio::sync::Notify>,
     started_s: Option<f64>,
+    /// The model's offline test error (rad), from its evaluation, if known.
+    offline_test_error_rad: Option<f64>,
     last_tick_s: Option<f64>,
     last_frame_s: Option<f64>,
     last_hand_s: Option<f64>,
@@ -821,12 +887,22 @@ impl<M: JointModel> HandInferenceNode<M> {
             sent_to_published: LatencyHistogram::new("sent_to_published"),
             wake,
             started_s: None,
+            offline_test_error_rad: None,
             last_tick_s: None,
             last_frame_s: None,
             last_hand_s: None,
             last_outcome: None,
             last_error: String::new(),
         })
+    }
+
+    /// Says the model's offline test error (rad) in the status, as
+    /// `hand_inference.model.offline_test_error_urad`, for the end-of-run report's hand
+    /// joint goal.
+    #[must_use]
+    pub fn with_offline_test_error(mut self, error_rad: Option<f64>) -> Self {
+        self.offline_test_error_rad = error_rad;
+        self
     }
 
     /// The estimator (its model and counters).
@@ -1023,6 +1099,14 @@ impl<M: JointModel> Node for HandInferenceNode<M> {
         let s = self.estimator.stats();
         out.push((format!("{PREFIX}.estimator.frames"), s.frames));
         out.push((format!("{PREFIX}.estimator.hands"), s.hands));
+        if let Some(e) = self.offline_test_error_rad {
+            // µrad: a few hundred thousand at most.
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            out.push((
+                format!("{PREFIX}.model.offline_test_error_urad"),
+                (e * 1e6).round() as u64,
+            ));
+        }
         self.capture_to_received.named(&mut out);
         self.processing.named(&mut out);
         self.capture_to_published.named(&mut out);
@@ -1055,8 +1139,17 @@ pub async fn run(
         .map_err(|e| anyhow::anyhow!("invalid configuration: {e}"))?;
     let estimator =
         load_estimator(&cfg).map_err(|e| anyhow::anyhow!("hand_inference cannot start: {e}"))?;
+    let offline = match resolve_model_path(&cfg.model) {
+        Ok(path) => offline_test_error(&path).unwrap_or_else(|e| {
+            tracing::warn!("the model's offline evaluation cannot be read: {e}");
+            None
+        }),
+        Err(_) => None,
+    };
     let bus = Bus::open(&cfg.node_name, &cfg.bus).await?;
-    let node = HandInferenceNode::with_model(&cfg, &bus, estimator).await?;
+    let node = HandInferenceNode::with_model(&cfg, &bus, estimator)
+        .await?
+        .with_offline_test_error(offline);
     teleop_node::run(bus, node, teleop_node::stop_signal(duration)).await
 }
 
@@ -1332,5 +1425,40 @@ mod tests {
         // The committed model is found from the repository root.
         let found = resolve_model_path(Path::new(DEFAULT_MODEL)).expect("committed model");
         assert!(found.is_file());
+    }
+
+    #[test]
+    fn the_committed_models_offline_error_is_read_and_bad_evaluations_are_named() {
+        let model = resolve_model_path(Path::new(DEFAULT_MODEL)).expect("committed model");
+        let e = offline_test_error(&model)
+            .expect("readable")
+            .expect("the committed model is evaluated");
+        assert!((0.05..0.2).contains(&e), "{e}");
+        let dir = std::env::temp_dir().join(format!("hand-offline-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("dir");
+        let m = dir.join("net.onnx");
+        // No evaluation beside it: unknown, not an error.
+        assert_eq!(offline_test_error(&m), Ok(None));
+        let report = dir.join("report.json");
+        std::fs::write(&report, "{ not json").expect("write");
+        let err = offline_test_error(&m).expect_err("malformed");
+        assert!(err.contains("report.json"), "{err}");
+        let eval = |command: &str, error: &str| {
+            format!(
+                r#"{{"command": "{command}", "rows": [{{"model": "a", "dataset": "ood", "mean_error_rad": 0.3}}, {{"model": "a", "dataset": "test", "mean_error_rad": {error}}}]}}"#
+            )
+        };
+        let with = |command: &str, error: &str| {
+            std::fs::write(&report, eval(command, error)).expect("write");
+            offline_test_error(&m)
+        };
+        assert_eq!(
+            with("hand_eval --model a=x/net.onnx --data test=d", "0.09"),
+            Ok(Some(0.09))
+        );
+        // Another model's evaluation: unknown.
+        assert_eq!(with("hand_eval --model a=x/other.onnx", "0.09"), Ok(None));
+        assert!(with("hand_eval --model a=net.onnx", "-1").is_err());
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -16,6 +16,7 @@
 //! * **Hand joint error**: each published finger target against the true fingers
 //!   retargeted to the Shadow hand for the same depth frame (paired by stamp).
 //! * **Contact forces**: the fingertip sensors' readings.
+//! * **Goals**: the local-site goals judged on these figures ([`RunReport::judge_goals`]).
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -70,6 +71,25 @@ impl ErrorSummary {
             max: v[v.len() - 1],
         }
     }
+}
+
+/// The closed loop's hand joint error may be at most this many times the model's
+/// offline test error (local-site goal).
+pub const HAND_ERROR_FACTOR: f64 = 1.2;
+/// Depth frame -> finger targets received at the robot site, p99, ms (local-site goal,
+/// judged in real time only).
+pub const LATENCY_GOAL_P99_MS: f64 = 10.0;
+
+/// One of the local-site goals, judged on this run.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct GoalCheck {
+    /// What the goal asks.
+    pub goal: String,
+    /// What this run measured.
+    pub measured: String,
+    /// Met (`true`), missed (`false`), or not judged on this run (`None`: nothing to
+    /// judge it on, or not in real time; `measured` says why).
+    pub met: Option<bool>,
 }
 
 /// The report.
@@ -133,6 +153,11 @@ pub struct RunReport {
     /// Largest and mean fingertip force per finger (ff, mf, rf, lf, th), N.
     pub fingertip_force_max_n: [f64; 5],
     pub fingertip_force_mean_n: [f64; 5],
+    /// The hand model's mean joint error on its offline test set, rad, as the
+    /// hand-inference node says it (from the evaluation beside the model), if known.
+    pub hand_offline_test_error_rad: Option<f64>,
+    /// The local-site goals judged on this run ([`RunReport::judge_goals`]).
+    pub goals: Vec<GoalCheck>,
     /// Time series for the plots: (t, camera position error m).
     #[serde(skip)]
     pub camera_series: Vec<(f64, f64)>,
@@ -340,6 +365,10 @@ const STAGE_TARGETS: usize = 2;
 const STAGE_PR2: usize = 3;
 const STAGE_TIPS: usize = 4;
 const STAGE_FRAME_SENT_TARGETS: usize = 5;
+/// The stage the latency goal is judged on.
+const FRAME_ON_THE_BUS_TO_TARGETS: &str = "depth frame on the bus -> finger targets";
+/// The same from the capture stamp (reported beside it).
+const CAPTURE_TO_TARGETS: &str = "depth frame -> finger targets";
 
 impl Recorder {
     /// Subscribes to everything the report needs.
@@ -366,10 +395,10 @@ impl Recorder {
             stages: vec![
                 Stage::new("motion capture -> wrist pose"),
                 Stage::new("UR5 joints -> camera pose"),
-                Stage::new("depth frame -> finger targets"),
+                Stage::new(CAPTURE_TO_TARGETS),
                 Stage::new("PR2 joints -> feedback"),
                 Stage::new("fingertip sensors -> feedback"),
-                Stage::new("depth frame on the bus -> finger targets"),
+                Stage::new(FRAME_ON_THE_BUS_TO_TARGETS),
             ],
             report: RunReport {
                 task: task.to_owned(),
@@ -625,6 +654,11 @@ impl Recorder {
                 }
             }
         }
+        r.hand_offline_test_error_rad = counter(
+            teleop_interfaces::nodes::HAND_INFERENCE,
+            "hand_inference.model.offline_test_error_urad",
+        )
+        .map(|urad| urad as f64 * 1e-6);
         for (node, stages) in [
             (
                 teleop_interfaces::nodes::HAND_INFERENCE,
@@ -640,6 +674,7 @@ impl Recorder {
                 }
             }
         }
+        r.goals = r.judge_goals();
         r
     }
 }
@@ -675,6 +710,118 @@ impl RunReport {
         } else {
             format!(" of simulated time at {}x real time", self.time_scale)
         }
+    }
+
+    /// The local-site goals (issue: local site; docs/local-site.md) judged on this run's
+    /// figures: the camera within 1 cm on average and 3 cm at most of its goal, the hand
+    /// fully in view in >= 99.5 % of the frames, the PR2 within 5 mm on average of the
+    /// scaled operator motion, the hand joints within 1.2x the model's offline test
+    /// error, and the depth frame on the bus -> finger targets at p99 <= 10 ms (in real
+    /// time only: at another rate the latencies are in simulated time). A goal with
+    /// nothing to judge it on (no frames, never clutched, no offline error) is not
+    /// judged.
+    #[must_use]
+    pub fn judge_goals(&self) -> Vec<GoalCheck> {
+        let check = |goal: &str, measured: String, met: Option<bool>| GoalCheck {
+            goal: goal.to_owned(),
+            measured,
+            met,
+        };
+        let mut out = Vec::new();
+        let c = &self.camera_position_error_m;
+        out.push(if c.samples == 0 {
+            check(
+                "UR5 camera position error mean <= 1 cm, max <= 3 cm",
+                "no camera poses".into(),
+                None,
+            )
+        } else {
+            check(
+                "UR5 camera position error mean <= 1 cm, max <= 3 cm",
+                format!(
+                    "mean {:.1} cm, max {:.1} cm ({} samples)",
+                    c.mean * 100.0,
+                    c.max * 100.0,
+                    c.samples
+                ),
+                Some(c.mean <= 0.01 && c.max <= 0.03),
+            )
+        });
+        let goal = "hand fully in view in >= 99.5 % of the depth frames";
+        out.push(if self.depth_frames == 0 {
+            check(goal, "no depth frames".into(), None)
+        } else {
+            check(
+                goal,
+                format!(
+                    "{:.1} % of {}",
+                    self.fraction_hand_fully_in_view * 100.0,
+                    self.depth_frames
+                ),
+                Some(self.fraction_hand_fully_in_view >= 0.995),
+            )
+        });
+        let p = &self.pr2_position_error_m;
+        let goal = "PR2 end-effector mean error vs the scaled operator motion <= 5 mm";
+        out.push(if p.samples == 0 {
+            check(goal, "never clutched".into(), None)
+        } else {
+            check(
+                goal,
+                format!("mean {:.1} mm ({} samples)", p.mean * 1e3, p.samples),
+                Some(p.mean <= 0.005),
+            )
+        });
+        let h = &self.hand_joint_mean_error_rad;
+        let goal = "hand joint mean error <= 1.2x the model's offline test error";
+        out.push(match (h.samples, self.hand_offline_test_error_rad) {
+            (0, _) => check(goal, "no finger targets".into(), None),
+            (_, None) => check(
+                goal,
+                format!(
+                    "mean {:.3} rad; the model's offline test error is not known (no evaluation beside it)",
+                    h.mean
+                ),
+                None,
+            ),
+            (_, Some(offline)) => check(
+                goal,
+                format!(
+                    "mean {:.3} rad, limit {:.3} rad (offline {:.4} rad)",
+                    h.mean,
+                    HAND_ERROR_FACTOR * offline,
+                    offline
+                ),
+                Some(h.mean <= HAND_ERROR_FACTOR * offline),
+            ),
+        });
+        let goal = "depth frame on the bus -> finger targets at the robot site p99 <= 10 ms";
+        let stage = |name: &str| self.latency.iter().find(|l| l.stage == name);
+        let from_capture = stage(CAPTURE_TO_TARGETS)
+            .filter(|l| l.samples > 0)
+            .map(|l| format!(" (from the capture stamp: p99 {:.1} ms)", l.p99_ms))
+            .unwrap_or_default();
+        let real_time = self.pacing.is_none() && (self.time_scale - 1.0).abs() < 1e-9;
+        out.push(match stage(FRAME_ON_THE_BUS_TO_TARGETS) {
+            Some(l) if l.samples > 0 && real_time => check(
+                goal,
+                format!(
+                    "p99 {:.1} ms over {} frames{from_capture}",
+                    l.p99_ms, l.samples
+                ),
+                Some(l.p99_ms <= LATENCY_GOAL_P99_MS),
+            ),
+            Some(l) if l.samples > 0 => check(
+                goal,
+                format!(
+                    "p99 {:.1} ms of simulated time: judged in real time only",
+                    l.p99_ms
+                ),
+                None,
+            ),
+            _ => check(goal, "no finger targets".into(), None),
+        });
+        out
     }
 
     /// The report as text.
@@ -804,6 +951,17 @@ impl RunReport {
             self.fingertip_force_mean_n[3],
             self.fingertip_force_mean_n[4],
         );
+        if !self.goals.is_empty() {
+            let _ = writeln!(s, "goals (docs/local-site.md):");
+            for g in &self.goals {
+                let verdict = match g.met {
+                    Some(true) => "met",
+                    Some(false) => "MISSED",
+                    None => "not judged",
+                };
+                let _ = writeln!(s, "  {verdict:<10} {}: {}", g.goal, g.measured);
+            }
+        }
         s
     }
 
@@ -979,5 +1137,91 @@ mod tests {
         assert!(pose_of(&p).is_some());
         p.position.x = f64::NAN;
         assert!(pose_of(&p).is_none());
+    }
+
+    fn summary(samples: usize, mean: f64, max: f64) -> ErrorSummary {
+        ErrorSummary {
+            samples,
+            mean,
+            p50: mean,
+            p99: max,
+            max,
+        }
+    }
+
+    fn latency(stage: &str, p99_ms: f64) -> StageLatency {
+        StageLatency {
+            stage: stage.to_owned(),
+            samples: 600,
+            p50_ms: p99_ms / 2.0,
+            p99_ms,
+            max_ms: p99_ms,
+        }
+    }
+
+    /// A run that met every goal, in real time.
+    fn good_run() -> RunReport {
+        RunReport {
+            time_scale: 1.0,
+            camera_position_error_m: summary(600, 0.003, 0.02),
+            depth_frames: 600,
+            frames_hand_fully_in_view: 600,
+            fraction_hand_fully_in_view: 1.0,
+            pr2_position_error_m: summary(900, 0.003, 0.01),
+            hand_joint_mean_error_rad: summary(590, 0.05, 0.1),
+            hand_offline_test_error_rad: Some(0.0948),
+            latency: vec![
+                latency(CAPTURE_TO_TARGETS, 12.5),
+                latency(FRAME_ON_THE_BUS_TO_TARGETS, 7.5),
+            ],
+            ..RunReport::default()
+        }
+    }
+
+    fn verdicts(r: &RunReport) -> Vec<Option<bool>> {
+        r.judge_goals().iter().map(|g| g.met).collect()
+    }
+
+    #[test]
+    fn goals_are_judged_met_missed_or_not_at_all_and_say_why() {
+        let good = good_run();
+        let goals = good.judge_goals();
+        assert_eq!(verdicts(&good), [Some(true); 5], "{goals:?}");
+        assert!(goals[3].measured.contains("limit 0.114 rad"), "{goals:?}");
+        assert!(
+            goals[4].measured.contains("capture stamp: p99 12.5"),
+            "{goals:?}"
+        );
+
+        // Each goal missed on its own.
+        let mut r = good_run();
+        r.camera_position_error_m.max = 0.031;
+        r.fraction_hand_fully_in_view = 0.99;
+        r.pr2_position_error_m.mean = 0.0051;
+        r.hand_joint_mean_error_rad.mean = 0.12;
+        r.latency[1].p99_ms = 10.5;
+        assert_eq!(verdicts(&r), [Some(false); 5]);
+
+        // Nothing to judge on, or not in real time: not judged, and the reason named.
+        let mut r = good_run();
+        r.camera_position_error_m = ErrorSummary::default();
+        r.depth_frames = 0;
+        r.pr2_position_error_m = ErrorSummary::default();
+        r.hand_offline_test_error_rad = None;
+        r.time_scale = 2.0;
+        let goals = r.judge_goals();
+        assert_eq!(verdicts(&r), [None; 5], "{goals:?}");
+        assert!(goals[2].measured.contains("never clutched"));
+        assert!(goals[3].measured.contains("not known"));
+        assert!(goals[4].measured.contains("real time only"));
+
+        // The text says each verdict.
+        let mut r = good_run();
+        r.latency[1].p99_ms = 10.5;
+        r.goals = r.judge_goals();
+        let text = r.text();
+        assert!(text.contains("goals (docs/local-site.md):"), "{text}");
+        assert_eq!(text.matches("\n  met ").count(), 4, "{text}");
+        assert!(text.contains("MISSED     depth frame on the bus"), "{text}");
     }
 }
