@@ -465,6 +465,9 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
             report.time_scale = (bus.now_s() - sim_start_s) / wall_s;
         }
         report.pacing = pacing.lock().ok().map(|p| p.clone());
+        // Judged again now that the report says the run was paced (the latency goal
+        // is judged in real time only).
+        report.goals = report.judge_goals();
     }
     println!();
     print!("{}", report.text());
