@@ -43,7 +43,9 @@ cp "$ORT" "$CTX/lib/libonnxruntime.so"
 for extra in "$(dirname "$ORT")"/libonnxruntime_providers_shared.so; do
   [[ -f $extra ]] && cp "$extra" "$CTX/lib/"
 done
-cp "$ROOT/local_site/models/hand/model.onnx" "$CTX/local_site/models/hand/"
+# The model and its offline evaluation (the report judges the hand joint goal by it).
+cp "$ROOT/local_site/models/hand/model.onnx" "$ROOT/local_site/models/hand/report.json" \
+  "$CTX/local_site/models/hand/"
 cp -r "$ROOT/deploy" "$CTX/deploy"
 cp "$ROOT/deploy/docker/Dockerfile.runtime" "$CTX/Dockerfile"
 docker build -q --build-arg "BASE=$BASE" -t "$IMAGE" "$CTX" >/dev/null
