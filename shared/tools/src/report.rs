@@ -698,6 +698,12 @@ impl RunReport {
         Ok(())
     }
 
+    /// Whether the run went in real time (not paced, scale 1; 0 is a report not yet
+    /// filled in).
+    fn in_real_time(&self) -> bool {
+        self.pacing.is_none() && ((self.time_scale - 1.0).abs() < 1e-9 || self.time_scale == 0.0)
+    }
+
     /// `""` in real time, else `" of simulated time at 0.5x real time"` and the like.
     fn time_scale_note(&self) -> String {
         if let Some(p) = &self.pacing {
@@ -705,7 +711,7 @@ impl RunReport {
                 " of simulated time as fast as possible: {:.2}x real time on average, {:.2}-{:.2}x in {} changes",
                 self.time_scale, p.min_rate, p.max_rate, p.changes
             )
-        } else if (self.time_scale - 1.0).abs() < 1e-9 || self.time_scale == 0.0 {
+        } else if self.in_real_time() {
             String::new()
         } else {
             format!(" of simulated time at {}x real time", self.time_scale)
@@ -729,15 +735,12 @@ impl RunReport {
         };
         let mut out = Vec::new();
         let c = &self.camera_position_error_m;
+        let goal = "UR5 camera position error mean <= 1 cm, max <= 3 cm";
         out.push(if c.samples == 0 {
-            check(
-                "UR5 camera position error mean <= 1 cm, max <= 3 cm",
-                "no camera poses".into(),
-                None,
-            )
+            check(goal, "no camera poses".into(), None)
         } else {
             check(
-                "UR5 camera position error mean <= 1 cm, max <= 3 cm",
+                goal,
                 format!(
                     "mean {:.1} cm, max {:.1} cm ({} samples)",
                     c.mean * 100.0,
@@ -801,7 +804,7 @@ impl RunReport {
             .filter(|l| l.samples > 0)
             .map(|l| format!(" (from the capture stamp: p99 {:.1} ms)", l.p99_ms))
             .unwrap_or_default();
-        let real_time = self.pacing.is_none() && (self.time_scale - 1.0).abs() < 1e-9;
+        let real_time = self.in_real_time();
         out.push(match stage(FRAME_ON_THE_BUS_TO_TARGETS) {
             Some(l) if l.samples > 0 && real_time => check(
                 goal,
