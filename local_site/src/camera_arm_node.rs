@@ -36,7 +36,9 @@ use teleop_interfaces::hardware::UR5_ARM;
 use teleop_interfaces::{nodes, topics};
 use teleop_msgs::{Header, JointState, Lifecycle, OperatorInput, PoseStamped, Time};
 use teleop_node::source::{self, CommanderConfig};
-use teleop_node::{FinalReport, Node, NodeConfig, SourceLock, check_controller_links};
+use teleop_node::{
+    FinalReport, Node, NodeConfig, SchedulingConfig, SourceLock, check_controller_links,
+};
 
 use crate::camera_arm::{
     CameraArmConfig, CameraArmController, CameraInputs, CameraStep, CameraStopReason, HandSample,
@@ -62,6 +64,8 @@ pub struct CameraArmNodeConfig {
     /// The control core (its `rate_hz` is the node's rate).
     pub camera_arm: CameraArmConfig,
     /// The Zenoh session.
+    /// The process's scheduling (normal, or real-time FIFO at a priority).
+    pub scheduling: SchedulingConfig,
     pub bus: BusConfig,
 }
 
@@ -73,6 +77,7 @@ impl Default for CameraArmNodeConfig {
             hardware_timeout_s: 0.1,
             commander: CommanderConfig::default(),
             camera_arm: CameraArmConfig::default(),
+            scheduling: SchedulingConfig::default(),
             bus: BusConfig::default(),
         }
     }
@@ -81,6 +86,9 @@ impl Default for CameraArmNodeConfig {
 impl NodeConfig for CameraArmNodeConfig {
     fn bus_mut(&mut self) -> &mut BusConfig {
         &mut self.bus
+    }
+    fn scheduling(&self) -> SchedulingConfig {
+        self.scheduling
     }
     fn validate(&self) -> Result<(), String> {
         if self.node_name.is_empty() {

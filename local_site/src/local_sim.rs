@@ -36,7 +36,7 @@ use teleop_interfaces::hardware::UR5_ARM;
 use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 use teleop_interfaces::topics;
 use teleop_msgs::{Header, Image, JointState, Lifecycle, OperatorInput, PoseStamped, Time};
-use teleop_node::{FinalReport, Node, NodeConfig, Periodic};
+use teleop_node::{FinalReport, Node, NodeConfig, Periodic, SchedulingConfig};
 use teleop_sim::operator_site::{
     MocapReading, OperatorSiteConfig, OperatorWorld, SharedOperatorWorld, SimUr5, UR5_DOF,
 };
@@ -79,6 +79,8 @@ pub struct LocalSimConfig {
     /// node ticks at the motion capture's rate.
     pub operator_site: OperatorSiteConfig,
     pub safety: LocalSimSafetyConfig,
+    /// The process's scheduling (normal, or real-time FIFO at a priority).
+    pub scheduling: SchedulingConfig,
     pub bus: BusConfig,
 }
 
@@ -90,6 +92,8 @@ impl Default for LocalSimConfig {
             truth_rate_hz: topics::SIM_OPERATOR_HAND_POSE.spec.rate_hz,
             operator_site: OperatorSiteConfig::default(),
             safety: LocalSimSafetyConfig::default(),
+            // On the depth frame's path to the hand (docs/local-site.md).
+            scheduling: SchedulingConfig::realtime(teleop_node::sched::LATENCY_PATH_PRIORITY),
             bus: BusConfig::default(),
         }
     }
@@ -98,6 +102,9 @@ impl Default for LocalSimConfig {
 impl NodeConfig for LocalSimConfig {
     fn bus_mut(&mut self) -> &mut BusConfig {
         &mut self.bus
+    }
+    fn scheduling(&self) -> SchedulingConfig {
+        self.scheduling
     }
     fn validate(&self) -> Result<(), String> {
         teleop_control::check_ranges(

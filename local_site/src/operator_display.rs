@@ -38,7 +38,7 @@ use teleop_interfaces::topics::{self, Topic, TopicSpec};
 use teleop_msgs::{
     CompressedImage, FingertipPressures, Header, JointState, Lifecycle, NodeStatus, OperatorInput,
 };
-use teleop_node::{FinalReport, Node, NodeConfig};
+use teleop_node::{FinalReport, Node, NodeConfig, SchedulingConfig};
 
 use crate::display_web::{self, CAMERAS, ViewFrame, WebHub};
 
@@ -70,6 +70,8 @@ pub struct OperatorDisplayConfig {
     pub force_scale_n: f64,
     /// A node whose newest status is older than this shows as silent, s.
     pub node_silent_s: f64,
+    /// The process's scheduling (normal, or real-time FIFO at a priority).
+    pub scheduling: SchedulingConfig,
     pub bus: BusConfig,
 }
 
@@ -86,6 +88,7 @@ impl Default for OperatorDisplayConfig {
             web_send_timeout_s: 5.0,
             force_scale_n: 50.0,
             node_silent_s: 3.0,
+            scheduling: SchedulingConfig::default(),
             bus: BusConfig::default(),
         }
     }
@@ -94,6 +97,9 @@ impl Default for OperatorDisplayConfig {
 impl NodeConfig for OperatorDisplayConfig {
     fn bus_mut(&mut self) -> &mut BusConfig {
         &mut self.bus
+    }
+    fn scheduling(&self) -> SchedulingConfig {
+        self.scheduling
     }
     fn validate(&self) -> Result<(), String> {
         teleop_control::check_ranges(

@@ -53,7 +53,7 @@ use teleop_hardware::{HardwareError, OperatorPanel, WristTracker};
 use teleop_hardware_bus::{BusPanel, BusWristTracker};
 use teleop_interfaces::topics;
 use teleop_msgs::{Header, Lifecycle, OperatorInput, PoseStamped, Time};
-use teleop_node::{FinalReport, Node, NodeConfig, Periodic};
+use teleop_node::{FinalReport, Node, NodeConfig, Periodic, SchedulingConfig};
 use teleop_sim::operator::{SimulatedDevices, SimulatedOperator, SimulatedOperatorConfig};
 use teleop_sim::operator_site;
 
@@ -105,6 +105,8 @@ pub struct WristTrackerConfig {
     /// poses when `source` is `simulated`.
     pub operator: SimulatedOperatorConfig,
     /// The bus.
+    /// The process's scheduling (normal, or real-time FIFO at a priority).
+    pub scheduling: SchedulingConfig,
     pub bus: BusConfig,
 }
 
@@ -123,6 +125,7 @@ impl Default for WristTrackerConfig {
             jump: JumpFilterConfig::default(),
             reacquire: ReacquireConfig::default(),
             operator: SimulatedOperatorConfig::default(),
+            scheduling: SchedulingConfig::default(),
             bus: BusConfig::default(),
         }
     }
@@ -164,6 +167,9 @@ fn check_range(name: &str, v: f64, min: f64, max: f64) -> Result<(), String> {
 impl NodeConfig for WristTrackerConfig {
     fn bus_mut(&mut self) -> &mut BusConfig {
         &mut self.bus
+    }
+    fn scheduling(&self) -> SchedulingConfig {
+        self.scheduling
     }
     fn validate(&self) -> Result<(), String> {
         for (name, v) in [

@@ -12,7 +12,9 @@ use teleop_interfaces::hardware::{PR2_ARM, SHADOW_HAND};
 use teleop_interfaces::{nodes, topics};
 use teleop_msgs::{Lifecycle, OperatorInput, PoseStamped};
 use teleop_node::source::{self, CommanderConfig};
-use teleop_node::{FinalReport, Node, NodeConfig, SourceLock, check_controller_links};
+use teleop_node::{
+    FinalReport, Node, NodeConfig, SchedulingConfig, SourceLock, check_controller_links,
+};
 
 use crate::arm_controller::{
     ArmCommand, ArmController, ArmControllerConfig, ArmInputs, ArmMode, OperatorSample, WristSample,
@@ -40,6 +42,8 @@ pub struct ArmNodeConfig {
     /// One commanding operator site at a time.
     pub commander: CommanderConfig,
     pub arm: ArmControllerConfig,
+    /// The process's scheduling (normal, or real-time FIFO at a priority).
+    pub scheduling: SchedulingConfig,
     pub bus: BusConfig,
 }
 
@@ -55,6 +59,7 @@ impl Default for ArmNodeConfig {
             hardware_timeout_s: 0.1,
             commander: CommanderConfig::default(),
             arm: ArmControllerConfig::default(),
+            scheduling: SchedulingConfig::default(),
             bus: BusConfig::default(),
         }
     }
@@ -63,6 +68,9 @@ impl Default for ArmNodeConfig {
 impl NodeConfig for ArmNodeConfig {
     fn bus_mut(&mut self) -> &mut BusConfig {
         &mut self.bus
+    }
+    fn scheduling(&self) -> SchedulingConfig {
+        self.scheduling
     }
     fn validate(&self) -> Result<(), String> {
         check_controller_links(&self.operator_site_nodes, self.hardware_timeout_s)?;

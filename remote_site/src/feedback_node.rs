@@ -17,7 +17,7 @@ use teleop_hardware_bus::{BusArm, BusCamera, BusHand};
 use teleop_interfaces::hardware::{PR2_ARM, SHADOW_HAND};
 use teleop_interfaces::topics;
 use teleop_msgs::{FingertipPressures, Header, JointState, Lifecycle};
-use teleop_node::{FinalReport, Node, NodeConfig};
+use teleop_node::{FinalReport, Node, NodeConfig, SchedulingConfig};
 
 use crate::view_pacer::{PacingConfig, ReceiptOutcome, ViewPacer};
 
@@ -39,6 +39,8 @@ pub struct FeedbackConfig {
     pub camera_jpeg_quality: u8,
     /// Pacing of the views by the operator display's receipts.
     pub camera_pacing: PacingConfig,
+    /// The process's scheduling (normal, or real-time FIFO at a priority).
+    pub scheduling: SchedulingConfig,
     pub bus: BusConfig,
 }
 
@@ -51,6 +53,7 @@ impl Default for FeedbackConfig {
             camera_rate_hz: topics::REMOTE_CAMERA_TOP.spec.rate_hz,
             camera_jpeg_quality: 80,
             camera_pacing: PacingConfig::default(),
+            scheduling: SchedulingConfig::default(),
             bus: BusConfig::default(),
         }
     }
@@ -59,6 +62,9 @@ impl Default for FeedbackConfig {
 impl NodeConfig for FeedbackConfig {
     fn bus_mut(&mut self) -> &mut BusConfig {
         &mut self.bus
+    }
+    fn scheduling(&self) -> SchedulingConfig {
+        self.scheduling
     }
     fn validate(&self) -> Result<(), String> {
         if !(self.rate_hz.is_finite() && self.rate_hz > 0.0 && self.rate_hz <= 1000.0) {

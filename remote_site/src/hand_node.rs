@@ -15,7 +15,8 @@ use teleop_interfaces::{nodes, topics};
 use teleop_msgs::{JointState, Lifecycle, OperatorInput};
 use teleop_node::source::{self, CommanderConfig};
 use teleop_node::{
-    FinalReport, LatencyHistogram, Node, NodeConfig, SourceLock, check_controller_links,
+    FinalReport, LatencyHistogram, Node, NodeConfig, SchedulingConfig, SourceLock,
+    check_controller_links,
 };
 
 use crate::command_age::CommandAges;
@@ -35,6 +36,8 @@ pub struct HandNodeConfig {
     /// One commanding operator site at a time (finger targets and pedals).
     pub commander: CommanderConfig,
     pub hand: HandSupervisorConfig,
+    /// The process's scheduling (normal, or real-time FIFO at a priority).
+    pub scheduling: SchedulingConfig,
     pub bus: BusConfig,
 }
 
@@ -46,6 +49,8 @@ impl Default for HandNodeConfig {
             hardware_timeout_s: 0.05,
             commander: CommanderConfig::default(),
             hand: HandSupervisorConfig::default(),
+            // On the depth frame's path to the hand (docs/local-site.md).
+            scheduling: SchedulingConfig::realtime(teleop_node::sched::LATENCY_PATH_PRIORITY),
             bus: BusConfig::default(),
         }
     }
@@ -54,6 +59,9 @@ impl Default for HandNodeConfig {
 impl NodeConfig for HandNodeConfig {
     fn bus_mut(&mut self) -> &mut BusConfig {
         &mut self.bus
+    }
+    fn scheduling(&self) -> SchedulingConfig {
+        self.scheduling
     }
     fn validate(&self) -> Result<(), String> {
         check_controller_links(&self.operator_site_nodes, self.hardware_timeout_s)?;

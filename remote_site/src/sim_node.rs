@@ -21,7 +21,7 @@ use teleop_hardware_bus::{ArmEndpoint, HandEndpoint};
 use teleop_interfaces::hardware::{PR2_ARM, SHADOW_HAND};
 use teleop_interfaces::topics;
 use teleop_msgs::{Image, Lifecycle};
-use teleop_node::{FinalReport, Node, NodeConfig, Periodic};
+use teleop_node::{FinalReport, Node, NodeConfig, Periodic, SchedulingConfig};
 use teleop_sim::{
     CameraViewsConfig, CupGraspConfig, SceneCameras, SharedWorld, SimArm, SimHand,
     TouchingTaskConfig, View, WORKING_POSTURE_RAD, World, WorldConfig,
@@ -84,6 +84,8 @@ pub struct SimNodeConfig {
     pub cameras: CameraViewsConfig,
     /// The safety layer around the simulated arm and hand.
     pub safety: SimSafetyConfig,
+    /// The process's scheduling (normal, or real-time FIFO at a priority).
+    pub scheduling: SchedulingConfig,
     pub bus: BusConfig,
 }
 
@@ -101,6 +103,7 @@ impl Default for SimNodeConfig {
             cup_grasp: CupGraspConfig::default(),
             cameras: CameraViewsConfig::default(),
             safety: SimSafetyConfig::default(),
+            scheduling: SchedulingConfig::default(),
             bus: BusConfig::default(),
         }
     }
@@ -109,6 +112,9 @@ impl Default for SimNodeConfig {
 impl NodeConfig for SimNodeConfig {
     fn bus_mut(&mut self) -> &mut BusConfig {
         &mut self.bus
+    }
+    fn scheduling(&self) -> SchedulingConfig {
+        self.scheduling
     }
     fn validate(&self) -> Result<(), String> {
         if !(self.state_rate_hz.is_finite()

@@ -41,7 +41,7 @@ use teleop_hardware_bus::BusCamera;
 use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 use teleop_interfaces::{nodes, topics};
 use teleop_msgs::{Header, Image, JointState, Lifecycle, Pose, PoseStamped, encodings};
-use teleop_node::{FinalReport, LatencyHistogram, Node, NodeConfig};
+use teleop_node::{FinalReport, LatencyHistogram, Node, NodeConfig, SchedulingConfig};
 use teleop_render::Intrinsics;
 
 use crate::{HandEstimate, HandEstimator, InferenceError, JointModel, OnnxModel, OnnxOptions};
@@ -177,6 +177,8 @@ pub struct HandInferenceConfig {
     /// The image fallback's segmentation.
     pub image_centre: ImageCentreConfig,
     /// The node's bus settings.
+    /// The process's scheduling (normal, or real-time FIFO at a priority).
+    pub scheduling: SchedulingConfig,
     pub bus: BusConfig,
 }
 
@@ -195,6 +197,8 @@ impl Default for HandInferenceConfig {
             no_hand_after_s: 0.5,
             image_fallback: true,
             image_centre: ImageCentreConfig::default(),
+            // On the depth frame's path to the hand (docs/local-site.md).
+            scheduling: SchedulingConfig::realtime(teleop_node::sched::LATENCY_PATH_PRIORITY),
             bus: BusConfig::default(),
         }
     }
@@ -203,6 +207,9 @@ impl Default for HandInferenceConfig {
 impl NodeConfig for HandInferenceConfig {
     fn bus_mut(&mut self) -> &mut BusConfig {
         &mut self.bus
+    }
+    fn scheduling(&self) -> SchedulingConfig {
+        self.scheduling
     }
 
     fn validate(&self) -> Result<(), String> {

@@ -11,8 +11,7 @@ struct Cli {
     node: NodeArgs,
 }
 
-#[tokio::main]
-async fn main() -> anyhow::Result<()> {
+fn main() -> anyhow::Result<()> {
     teleop_node::init_tracing();
-    Cli::parse().node.run(camera_arm_node::run).await
+    Cli::parse().node.main(camera_arm_node::run)
 }

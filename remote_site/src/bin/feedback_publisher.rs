@@ -12,8 +12,7 @@ struct Cli {
     node: NodeArgs,
 }
 
-#[tokio::main]
-async fn main() -> anyhow::Result<()> {
+fn main() -> anyhow::Result<()> {
     teleop_node::init_tracing();
-    Cli::parse().node.run(feedback_node::run).await
+    Cli::parse().node.main(feedback_node::run)
 }

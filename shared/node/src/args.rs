@@ -213,6 +213,10 @@ pub struct NodeArgs {
     /// Stop after this many seconds (default: until Ctrl-C or SIGTERM).
     #[arg(long)]
     pub duration_s: Option<f64>,
+    /// Real-time FIFO priority of every thread of the process, 1-98, or 0 for normal
+    /// time sharing (overrides the config's `scheduling.realtime_priority`).
+    #[arg(long, value_parser = clap::value_parser!(u8).range(0..=crate::sched::MAX_REALTIME_PRIORITY as i64))]
+    pub realtime_priority: Option<u8>,
 }
 
 impl NodeArgs {
@@ -273,6 +277,39 @@ impl NodeArgs {
         };
         let duration = self.duration()?;
         run(cfg, duration).await.map(drop)
+    }
+
+    /// A node binary's whole `main` after parsing, the async runtime included: loads
+    /// the configuration ([`load`](Self::load)), gives the process the configured
+    /// scheduling ([`crate::sched::apply`]) while it has one thread, so that every
+    /// thread started afterwards inherits it, then starts the runtime and runs `run`
+    /// with the configuration and the `--duration-s` limit.
+    ///
+    /// # Errors
+    /// The configuration's [`ConfigError`], the runtime's start, or what `run` returns.
+    pub fn main<C, F, Fut, T, E>(&self, run: F) -> anyhow::Result<()>
+    where
+        C: NodeConfig,
+        F: FnOnce(C, Option<std::time::Duration>) -> Fut,
+        Fut: std::future::Future<Output = Result<T, E>>,
+        E: Into<anyhow::Error>,
+    {
+        let Some(cfg) = self.load::<C>()? else {
+            return Ok(());
+        };
+        let duration = self.duration()?;
+        let scheduling = self
+            .realtime_priority
+            .map_or_else(|| cfg.scheduling(), crate::SchedulingConfig::realtime);
+        crate::sched::apply(&scheduling);
+        let runtime = tokio::runtime::Builder::new_multi_thread()
+            .enable_all()
+            .build()
+            .map_err(|e| anyhow::anyhow!("cannot start the async runtime: {e}"))?;
+        runtime
+            .block_on(run(cfg, duration))
+            .map(drop)
+            .map_err(Into::into)
     }
 }
 

@@ -11,6 +11,9 @@ use teleop_bus::BusConfig;
 pub trait NodeConfig: Serialize + DeserializeOwned + Default {
     /// The bus section, so command-line overrides can be applied.
     fn bus_mut(&mut self) -> &mut BusConfig;
+    /// The process's scheduling (the `[scheduling]` section), applied before the node's
+    /// runtime starts ([`crate::NodeArgs::main`]).
+    fn scheduling(&self) -> crate::SchedulingConfig;
     /// Checks values serde cannot (ranges, consistency).
     ///
     /// # Errors
@@ -46,6 +49,7 @@ pub fn validate_all<C: NodeConfig>(cfg: &mut C) -> Result<(), String> {
         tls.check_endpoints(&zenoh.connect, zenoh.listened())
             .map_err(|e| format!("bus.zenoh.{e}"))?;
     }
+    cfg.scheduling().validate()?;
     cfg.validate()
 }
 

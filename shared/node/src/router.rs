@@ -70,6 +70,12 @@ impl NodeConfig for RouterConfig {
         &mut self.bus
     }
 
+    /// Normal time sharing: the router runs inside `teleop`, whose runtime has started
+    /// before its configuration is read.
+    fn scheduling(&self) -> crate::SchedulingConfig {
+        crate::SchedulingConfig::default()
+    }
+
     fn validate(&self) -> Result<(), String> {
         let z = &self.bus.zenoh;
         if z.mode != Mode::Router {

@@ -90,12 +90,11 @@ where
     status_tick.set_missed_tick_behavior(MissedTickBehavior::Skip);
     tokio::pin!(stop);
     let report = |node: &N, state: Lifecycle| {
-        if let Err(e) = status.report(
-            bus.clock().now_ns(),
-            state,
-            &node.counters(),
-            &node.last_error(),
-        ) {
+        let mut counters = node.counters();
+        if let Some(scheduling) = crate::sched::process() {
+            counters.extend(scheduling.counters());
+        }
+        if let Err(e) = status.report(bus.clock().now_ns(), state, &counters, &node.last_error()) {
             tracing::warn!("status: {e}");
         }
     };

@@ -76,6 +76,11 @@ pub struct LaunchArgs {
     /// not with --time-scale). The report gives the rates the run went through.
     #[arg(long)]
     pub as_fast_as_possible: bool,
+    /// Every node at normal time sharing, none in the real-time class (by default the
+    /// depth frame's path to the hand runs real-time where this user may:
+    /// `scheduling.realtime_priority` in the node configs).
+    #[arg(long)]
+    pub no_realtime: bool,
 }
 
 /// This run's directory for the configs the launcher writes.
@@ -354,6 +359,9 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
                 .arg(dir.join(format!("{}.toml", spec.name)));
         }
         cmd.args(zenoh.to_args());
+        if args.no_realtime {
+            cmd.args(["--realtime-priority", "0"]);
+        }
         // Each node in a process group of its own: a terminal's Ctrl-C (SIGINT to the
         // whole foreground group) reaches only the launcher, which stops the nodes in
         // the node table's order (controllers first, the robots' owner last) instead of

@@ -156,6 +156,10 @@ pub struct RunReport {
     /// The hand model's mean joint error on its offline test set, rad, as the
     /// hand-inference node says it (from the evaluation beside the model), if known.
     pub hand_offline_test_error_rad: Option<f64>,
+    /// The nodes that asked for real-time scheduling (`scheduling.realtime_priority`):
+    /// what each asked for and got (0 = refused, normal time sharing), from their
+    /// final status.
+    pub realtime_scheduling: BTreeMap<String, RealtimeScheduling>,
     /// The local-site goals judged on this run ([`RunReport::judge_goals`]).
     pub goals: Vec<GoalCheck>,
     /// Time series for the plots: (t, camera position error m).
@@ -170,6 +174,34 @@ pub struct RunReport {
     /// Per stage, sorted latencies (ms), for the CDF plot.
     #[serde(skip)]
     pub latency_samples: Vec<(String, Vec<f64>)>,
+}
+
+/// A node's real-time scheduling as its status says it.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq, Eq)]
+pub struct RealtimeScheduling {
+    pub requested: u64,
+    /// 0: refused (the process may not), normal time sharing.
+    pub granted: u64,
+}
+
+/// The nodes whose status says they asked for real-time scheduling, with what they got.
+fn realtime_scheduling(
+    finals: &BTreeMap<String, NodeStatus>,
+) -> BTreeMap<String, RealtimeScheduling> {
+    let counter = |s: &NodeStatus, name: &str| {
+        s.counter_names
+            .iter()
+            .position(|n| n == name)
+            .and_then(|i| s.counter_values.get(i).copied())
+    };
+    finals
+        .iter()
+        .filter_map(|(node, s)| {
+            let requested = counter(s, "process.realtime_priority_requested").filter(|&p| p > 0)?;
+            let granted = counter(s, "process.realtime_priority").unwrap_or(0);
+            Some((node.clone(), RealtimeScheduling { requested, granted }))
+        })
+        .collect()
 }
 
 fn pose_of(p: &Pose) -> Option<Isometry3<f64>> {
@@ -654,6 +686,7 @@ impl Recorder {
                 }
             }
         }
+        r.realtime_scheduling = realtime_scheduling(finals);
         r.hand_offline_test_error_rad = counter(
             teleop_interfaces::nodes::HAND_INFERENCE,
             "hand_inference.model.offline_test_error_urad",
@@ -800,9 +833,19 @@ impl RunReport {
         });
         let goal = "depth frame on the bus -> finger targets at the robot site p99 <= 10 ms";
         let stage = |name: &str| self.latency.iter().find(|l| l.stage == name);
+        let at_the_hand = self
+            .hand_controller_stages_us
+            .get("latency.targets.capture_to_received_us.p99")
+            .map(|us| format!(", {:.1} ms at the hand controller", *us as f64 / 1000.0))
+            .unwrap_or_default();
         let from_capture = stage(CAPTURE_TO_TARGETS)
             .filter(|l| l.samples > 0)
-            .map(|l| format!(" (from the capture stamp: p99 {:.1} ms)", l.p99_ms))
+            .map(|l| {
+                format!(
+                    " (from the capture stamp: p99 {:.1} ms{at_the_hand})",
+                    l.p99_ms
+                )
+            })
             .unwrap_or_default();
         let real_time = self.in_real_time();
         out.push(match stage(FRAME_ON_THE_BUS_TO_TARGETS) {
@@ -873,6 +916,17 @@ impl RunReport {
                 })
                 .collect();
             let _ = writeln!(s, "  {who}: {}", stages.join(", "));
+        }
+        if !self.realtime_scheduling.is_empty() {
+            let nodes: Vec<String> = self
+                .realtime_scheduling
+                .iter()
+                .map(|(node, r)| match r.granted {
+                    0 => format!("{node} (asked {}, refused: normal)", r.requested),
+                    p => format!("{node} {p}"),
+                })
+                .collect();
+            let _ = writeln!(s, "  real-time FIFO scheduling: {}", nodes.join(", "));
         }
         let c = &self.camera_position_error_m;
         let _ = writeln!(
@@ -1192,7 +1246,17 @@ mod tests {
         assert_eq!(verdicts(&good), [Some(true); 5], "{goals:?}");
         assert!(goals[3].measured.contains("limit 0.114 rad"), "{goals:?}");
         assert!(
-            goals[4].measured.contains("capture stamp: p99 12.5"),
+            goals[4].measured.contains("capture stamp: p99 12.5 ms)"),
+            "{goals:?}"
+        );
+        let mut r = good_run();
+        r.hand_controller_stages_us
+            .insert("latency.targets.capture_to_received_us.p99".into(), 11_900);
+        let goals = r.judge_goals();
+        assert!(
+            goals[4]
+                .measured
+                .contains("capture stamp: p99 12.5 ms, 11.9 ms at the hand controller)"),
             "{goals:?}"
         );
 
@@ -1226,5 +1290,71 @@ mod tests {
         assert!(text.contains("goals (docs/local-site.md):"), "{text}");
         assert_eq!(text.matches("\n  met ").count(), 4, "{text}");
         assert!(text.contains("MISSED     depth frame on the bus"), "{text}");
+    }
+
+    #[test]
+    fn the_report_names_the_real_time_nodes_and_the_refusals() {
+        let status = |name: &str, counters: &[(&str, u64)]| NodeStatus {
+            node_name: name.to_owned(),
+            counter_names: counters.iter().map(|(n, _)| (*n).to_owned()).collect(),
+            counter_values: counters.iter().map(|(_, v)| *v).collect(),
+            ..NodeStatus::default()
+        };
+        let finals: BTreeMap<String, NodeStatus> = [
+            status(
+                "hand_inference",
+                &[
+                    ("process.realtime_priority", 50),
+                    ("process.realtime_priority_requested", 50),
+                ],
+            ),
+            status(
+                "local_sim",
+                &[
+                    ("process.realtime_priority", 0),
+                    ("process.realtime_priority_requested", 50),
+                ],
+            ),
+            status(
+                "camera_arm",
+                &[
+                    ("process.realtime_priority", 0),
+                    ("process.realtime_priority_requested", 0),
+                ],
+            ),
+            status("wrist_tracker", &[("tracker.samples", 3)]),
+        ]
+        .into_iter()
+        .map(|s| (s.node_name.clone(), s))
+        .collect();
+        let rt = realtime_scheduling(&finals);
+        assert_eq!(
+            rt.into_iter().collect::<Vec<_>>(),
+            [
+                (
+                    "hand_inference".to_owned(),
+                    RealtimeScheduling {
+                        requested: 50,
+                        granted: 50
+                    }
+                ),
+                (
+                    "local_sim".to_owned(),
+                    RealtimeScheduling {
+                        requested: 50,
+                        granted: 0
+                    }
+                ),
+            ]
+        );
+        let mut r = good_run();
+        r.realtime_scheduling = realtime_scheduling(&finals);
+        let text = r.text();
+        assert!(
+            text.contains(
+                "real-time FIFO scheduling: hand_inference 50, local_sim (asked 50, refused: normal)"
+            ),
+            "{text}"
+        );
     }
 }

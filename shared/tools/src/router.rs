@@ -26,6 +26,7 @@ pub async fn run(args: RouterArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         show_default_config: args.show_default_config,
         zenoh: zenoh.clone(),
         duration_s: args.duration_s,
+        realtime_priority: None,
     };
     let Some(cfg) = node_args.load::<RouterConfig>()? else {
         return Ok(());

@@ -156,7 +156,13 @@ fn tasks_run_once_and_meet_the_goals_in_the_report() {
 fn a_task_on_simulated_time_twice_as_fast_meets_the_goals() {
     let _one = one_system();
     let started = std::time::Instant::now();
-    let json = task_meets_the_goals("fader", "98", 15.0..40.0, &["--time-scale", "2"], &[]);
+    let json = task_meets_the_goals(
+        "fader",
+        "98",
+        15.0..40.0,
+        &["--time-scale", "2"],
+        &["--no-realtime"],
+    );
     let wall_s = started.elapsed().as_secs_f64();
     assert_eq!(json["time_scale"], 2.0, "{json}");
     let sim_s = json["duration_s"].as_f64().expect("duration_s");
@@ -206,6 +212,91 @@ fn a_task_as_fast_as_possible_meets_the_goals() {
         wall_s >= sim_s / mean * 0.9,
         "{wall_s} s wall, {sim_s} s at {mean}x"
     );
+}
+
+/// The nodes whose configs ask for real-time scheduling by default: the depth frame's
+/// path to the hand (docs/local-site.md).
+const REALTIME_BY_DEFAULT: [&str; 3] = ["hand_inference", "local_sim", "shadow_hand_controller"];
+
+/// The scheduling policy and real-time priority of every thread of process `pid`, by
+/// thread name (`/proc/PID/task/*/stat`: fields 41 and 40).
+fn thread_scheduling(pid: u32) -> Vec<(String, u32, u32)> {
+    let mut out = Vec::new();
+    for task in std::fs::read_dir(format!("/proc/{pid}/task")).expect("/proc task list") {
+        let dir = task.expect("task").path();
+        let (Ok(comm), Ok(stat)) = (
+            std::fs::read_to_string(dir.join("comm")),
+            std::fs::read_to_string(dir.join("stat")),
+        ) else {
+            continue; // the thread ended meanwhile
+        };
+        // After the command name in parentheses: field 3 onwards.
+        let rest = &stat[stat.rfind(')').expect("stat") + 2..];
+        let fields: Vec<&str> = rest.split_whitespace().collect();
+        let field = |n: usize| fields[n - 3].parse::<u32>().expect("number");
+        out.push((comm.trim().to_owned(), field(41), field(40)));
+    }
+    out
+}
+
+/// Whether this process may put a thread in the real-time FIFO class (root,
+/// CAP_SYS_NICE or an RLIMIT_RTPRIO): util-linux's `chrt` asks the OS.
+fn realtime_permitted() -> bool {
+    Command::new("chrt")
+        .args(["-f", "5", "true"])
+        .output()
+        .expect("chrt (util-linux)")
+        .status
+        .success()
+}
+
+/// `--realtime-priority` (or `scheduling.realtime_priority`): the node sets it before
+/// its runtime starts, so every thread it starts afterwards runs in the real-time FIFO
+/// class at that priority (Zenoh's shared-memory watchdog sets its own); where the
+/// process may not, it says so and runs on at normal priority. Its status says both.
+#[test]
+fn a_node_runs_every_thread_at_its_configured_real_time_priority() {
+    let _one = one_system();
+    let dir = Path::new(env!("CARGO_BIN_EXE_teleop")).parent().unwrap();
+    for priority in [7u32, 0] {
+        let child = Command::new(dir.join("shadow_hand_controller"))
+            .args([
+                "--domain-id",
+                "87",
+                "--duration-s",
+                "4",
+                "--realtime-priority",
+            ])
+            .arg(priority.to_string())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .expect("start shadow_hand_controller");
+        std::thread::sleep(std::time::Duration::from_millis(1500));
+        let threads = thread_scheduling(child.id());
+        let out = child.wait_with_output().expect("wait");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{stderr}");
+        println!("priority {priority}: {threads:?}");
+        // The runtime's workers, Zenoh's threads and the main thread at least.
+        assert!(threads.len() >= 4, "{threads:?}");
+        let ours: Vec<_> = threads
+            .iter()
+            .filter(|(name, _, _)| !name.starts_with("Watchdog"))
+            .collect();
+        let (policy, rt) = if priority > 0 && realtime_permitted() {
+            assert!(stderr.contains("real-time FIFO scheduling"), "{stderr}");
+            (1, priority)
+        } else {
+            if priority > 0 {
+                assert!(stderr.contains("real-time scheduling refused"), "{stderr}");
+            }
+            (0, 0)
+        };
+        for (name, p, r) in &ours {
+            assert_eq!((*p, *r), (policy, rt), "thread {name}: {threads:?}");
+        }
+    }
 }
 
 /// Runs `task` once (on `domain`, with `extra` before `launch` and `launch_extra` after
@@ -305,6 +396,26 @@ fn task_meets_the_goals(
             && latency["met"].is_boolean() == real_time,
         "{task}: {latency}"
     );
+    // The depth frame's path to the hand ran real-time (its nodes' default) where
+    // this process may set real-time scheduling too, at normal priority where not;
+    // `--no-realtime` runs every node at normal priority.
+    let realtime = &json["realtime_scheduling"];
+    if launch_extra.contains(&"--no-realtime") {
+        assert_eq!(realtime, &serde_json::json!({}), "{task}: {realtime}");
+    } else {
+        let granted = if realtime_permitted() { 50 } else { 0 };
+        let expected: serde_json::Value = REALTIME_BY_DEFAULT
+            .iter()
+            .map(|n| {
+                (
+                    (*n).to_owned(),
+                    serde_json::json!({"requested": 50, "granted": granted}),
+                )
+            })
+            .collect::<serde_json::Map<_, _>>()
+            .into();
+        assert_eq!(realtime, &expected, "{task}");
+    }
     // The PR2 followed the operator while clutched.
     assert_eq!(json["clutch_engagements"], 1, "{task}: {json}");
     assert!(

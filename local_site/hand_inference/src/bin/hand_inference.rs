@@ -15,8 +15,7 @@ struct Cli {
     node: NodeArgs,
 }
 
-#[tokio::main]
-async fn main() -> anyhow::Result<()> {
+fn main() -> anyhow::Result<()> {
     teleop_node::init_tracing();
     let cli = Cli::parse();
     if cli.ensure_runtime {
@@ -25,5 +24,5 @@ async fn main() -> anyhow::Result<()> {
         println!("{} (via {})", found.path.display(), found.source);
         return Ok(());
     }
-    cli.node.run(node::run).await
+    cli.node.main(node::run)
 }
