@@ -259,26 +259,6 @@ impl NodeArgs {
         Ok(Some(cfg))
     }
 
-    /// A node binary's whole `main` after parsing: loads the configuration
-    /// ([`load`](Self::load)) and calls `run` with it and the `--duration-s` limit;
-    /// returns at once after `--show-default-config`.
-    ///
-    /// # Errors
-    /// The configuration's [`ConfigError`], or what `run` returns.
-    pub async fn run<C, F, Fut, T, E>(&self, run: F) -> Result<(), E>
-    where
-        C: NodeConfig,
-        F: FnOnce(C, Option<std::time::Duration>) -> Fut,
-        Fut: std::future::Future<Output = Result<T, E>>,
-        E: From<ConfigError>,
-    {
-        let Some(cfg) = self.load::<C>()? else {
-            return Ok(());
-        };
-        let duration = self.duration()?;
-        run(cfg, duration).await.map(drop)
-    }
-
     /// A node binary's whole `main` after parsing, the async runtime included: loads
     /// the configuration ([`load`](Self::load)), gives the process the configured
     /// scheduling ([`crate::sched::apply`]) while it has one thread, so that every

@@ -84,6 +84,9 @@ pub async fn run(args: &FoxgloveArgs, cfg: &BusConfig) -> anyhow::Result<()> {
         Some(s) => bail!("--duration-s {s}: a positive number of seconds"),
         None => None,
     };
+    // Signals are watched from here on: a client served as soon as the server starts
+    // may interrupt it at once.
+    let stop = teleop_node::stop_signal(duration);
     let specs = crate::bag::chosen_topics(&args.topics, args.all)?;
     // A context of its own: only this command's channels reach this server.
     let ctx = foxglove::Context::new();
@@ -123,7 +126,6 @@ pub async fn run(args: &FoxgloveArgs, cfg: &BusConfig) -> anyhow::Result<()> {
     );
 
     let started = Instant::now();
-    let stop = teleop_node::stop_signal(duration);
     tokio::pin!(stop);
     let mut tick = tokio::time::interval(Duration::from_secs(5));
     tick.tick().await;
