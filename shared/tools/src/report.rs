@@ -188,17 +188,13 @@ pub struct RealtimeScheduling {
 fn realtime_scheduling(
     finals: &BTreeMap<String, NodeStatus>,
 ) -> BTreeMap<String, RealtimeScheduling> {
-    let counter = |s: &NodeStatus, name: &str| {
-        s.counter_names
-            .iter()
-            .position(|n| n == name)
-            .and_then(|i| s.counter_values.get(i).copied())
-    };
     finals
         .iter()
         .filter_map(|(node, s)| {
-            let requested = counter(s, "process.realtime_priority_requested").filter(|&p| p > 0)?;
-            let granted = counter(s, "process.realtime_priority").unwrap_or(0);
+            let requested = s
+                .counter("process.realtime_priority_requested")
+                .filter(|&p| p > 0)?;
+            let granted = s.counter("process.realtime_priority").unwrap_or(0);
             Some((node.clone(), RealtimeScheduling { requested, granted }))
         })
         .collect()
@@ -662,14 +658,7 @@ impl Recorder {
         if self.force_n > 0 {
             r.fingertip_force_mean_n = self.force_sum.map(|s| s / self.force_n as f64);
         }
-        let counter = |node: &str, name: &str| {
-            finals.get(node).and_then(|s| {
-                s.counter_names
-                    .iter()
-                    .position(|n| n == name)
-                    .and_then(|i| s.counter_values.get(i).copied())
-            })
-        };
+        let counter = |node: &str, name: &str| finals.get(node).and_then(|s| s.counter(name));
         r.depth_frames = counter("local_sim", "camera.frames").unwrap_or(0);
         r.frames_hand_fully_in_view =
             counter("local_sim", "camera.frames_hand_fully_in_view").unwrap_or(0);
