@@ -5,10 +5,10 @@
 //!
 //! 1. the path given by the caller (a node's config);
 //! 2. the environment variable `ORT_DYLIB_PATH` (ort's convention);
-//! 3. the project's Python environment, `$TELEOP_VENV` or `~/.cache/teleop-venv`
-//!    (made by `bash tests/run.sh`, which installs `onnxruntime` there);
-//! 4. an `onnxruntime` package installed for `python3` (asked with `python3 -c`),
-//!    or in the usual site-packages directories.
+//! 3. the wheel's places ([`teleop_pywheel`]): the project's Python environment,
+//!    `$TELEOP_VENV` or `~/.cache/teleop-venv` (made by `bash tests/run.sh`, which
+//!    installs `onnxruntime` there), an `onnxruntime` package installed for `python3`
+//!    (asked with `python3 -c`), the usual site-packages directories.
 //!
 //! When nothing is found, the error lists every place looked at and says how to get
 //! the library. The first successful load wins for the whole process (ONNX Runtime
@@ -16,6 +16,9 @@
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
+
+pub use teleop_pywheel::Found;
+use teleop_pywheel::WheelLibrary;
 
 use crate::InferenceError;
 
@@ -25,12 +28,13 @@ pub const ONNXRUNTIME_VERSION: &str = "1.32.0";
 static ENVIRONMENT: OnceLock<Result<(ort::environment::Environment, PathBuf), String>> =
     OnceLock::new();
 
-/// Where the library was found and which search steps were tried.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Found {
-    pub path: PathBuf,
-    pub source: &'static str,
-}
+/// The library in the `onnxruntime` wheel (`onnxruntime/capi/libonnxruntime.so.*`).
+pub const ONNXRUNTIME_WHEEL: WheelLibrary = WheelLibrary {
+    package: "onnxruntime",
+    version: ONNXRUNTIME_VERSION,
+    subdir: "capi",
+    file_prefix: "libonnxruntime.so",
+};
 
 /// Searches for `libonnxruntime.so` (see the module docs); `explicit` is step 1.
 ///
@@ -38,12 +42,11 @@ pub struct Found {
 /// [`InferenceError::RuntimeNotFound`] listing every place looked at, or naming an
 /// explicit/`ORT_DYLIB_PATH` path that does not exist.
 pub fn find(explicit: Option<&Path>) -> Result<Found, InferenceError> {
-    let mut looked = Vec::new();
     if let Some(p) = explicit {
         if p.is_file() {
             return Ok(Found {
                 path: p.to_path_buf(),
-                source: "config",
+                source: "config".to_owned(),
             });
         }
         return Err(InferenceError::RuntimeNotFound {
@@ -55,7 +58,7 @@ pub fn find(explicit: Option<&Path>) -> Result<Found, InferenceError> {
         if p.is_file() {
             return Ok(Found {
                 path: p,
-                source: "ORT_DYLIB_PATH",
+                source: "ORT_DYLIB_PATH".to_owned(),
             });
         }
         return Err(InferenceError::RuntimeNotFound {
@@ -65,100 +68,16 @@ pub fn find(explicit: Option<&Path>) -> Result<Found, InferenceError> {
             )],
         });
     }
-    if let Some(venv) = project_venv() {
-        looked.push(format!(
-            "{}/lib/python3*/site-packages/onnxruntime/capi",
-            venv.display()
-        ));
-        if let Some(p) = in_site_packages(&venv.join("lib")) {
-            return Ok(Found {
-                path: p,
-                source: "project environment",
-            });
-        }
-    }
-    looked.push("python3 -c 'import onnxruntime'".to_owned());
-    if let Some(p) = from_python() {
-        return Ok(Found {
-            path: p,
-            source: "python3 onnxruntime package",
-        });
-    }
-    for dir in ["/usr/local/lib", "/usr/lib"] {
-        looked.push(format!(
-            "{dir}/python3*/{{site,dist}}-packages/onnxruntime/capi"
-        ));
-        if let Some(p) = in_site_packages(Path::new(dir)) {
-            return Ok(Found {
-                path: p,
-                source: "system site-packages",
-            });
-        }
-    }
-    Err(InferenceError::RuntimeNotFound { looked })
-}
-
-/// `libonnxruntime.so*` inside `<lib>/python3*/{site,dist}-packages/onnxruntime/capi`.
-fn in_site_packages(lib: &Path) -> Option<PathBuf> {
-    let entries = std::fs::read_dir(lib).ok()?;
-    let mut pythons: Vec<PathBuf> = entries
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| {
-            p.file_name()
-                .and_then(|n| n.to_str())
-                .is_some_and(|n| n.starts_with("python3"))
-        })
-        .collect();
-    pythons.sort();
-    pythons.reverse();
-    for py in pythons {
-        for packages in ["site-packages", "dist-packages"] {
-            if let Some(p) = library_in(&py.join(packages).join("onnxruntime/capi")) {
-                return Some(p);
-            }
-        }
-    }
-    None
-}
-
-fn library_in(capi: &Path) -> Option<PathBuf> {
-    let mut libs: Vec<PathBuf> = std::fs::read_dir(capi)
-        .ok()?
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| {
-            p.file_name()
-                .and_then(|n| n.to_str())
-                .is_some_and(|n| n.starts_with("libonnxruntime.so"))
-        })
-        .collect();
-    libs.sort();
-    libs.pop()
-}
-
-fn from_python() -> Option<PathBuf> {
-    let out = std::process::Command::new("python3")
-        .args([
-            "-c",
-            "import os, onnxruntime; print(os.path.dirname(onnxruntime.__file__))",
-        ])
-        .stderr(std::process::Stdio::null())
-        .output()
-        .ok()?;
-    if !out.status.success() {
-        return None;
-    }
-    let dir = String::from_utf8(out.stdout).ok()?;
-    library_in(&PathBuf::from(dir.trim()).join("capi"))
+    let mut looked = Vec::new();
+    ONNXRUNTIME_WHEEL
+        .search(project_venv().as_deref(), &mut looked)
+        .ok_or(InferenceError::RuntimeNotFound { looked })
 }
 
 /// The project's Python environment: `$TELEOP_VENV`, else `~/.cache/teleop-venv`.
 #[must_use]
 pub fn project_venv() -> Option<PathBuf> {
-    std::env::var_os("TELEOP_VENV")
-        .map(PathBuf::from)
-        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache/teleop-venv")))
+    teleop_pywheel::project_venv(&|name| std::env::var_os(name))
 }
 
 /// Finds the library, and when it is nowhere, installs the pinned `onnxruntime` wheel
@@ -177,38 +96,10 @@ pub fn find_or_install(explicit: Option<&Path>) -> Result<Found, InferenceError>
     let Some(venv) = project_venv() else {
         return Err(first);
     };
-    let fail = |what: String| InferenceError::RuntimeNotFound {
-        looked: vec![format!(
-            "installing onnxruntime=={ONNXRUNTIME_VERSION} into {}: {what}",
-            venv.display()
-        )],
-    };
-    let python = venv.join("bin/python");
     tracing::info!(venv = %venv.display(), "ONNX Runtime not found: installing onnxruntime=={ONNXRUNTIME_VERSION} from PyPI into the project environment");
-    if !python.is_file() {
-        let status = std::process::Command::new("python3")
-            .args(["-m", "venv"])
-            .arg(&venv)
-            .status()
-            .map_err(|e| fail(format!("python3 -m venv: {e}")))?;
-        if !status.success() {
-            return Err(fail(format!("python3 -m venv exited with {status}")));
-        }
-    }
-    let status = std::process::Command::new(&python)
-        .args([
-            "-m",
-            "pip",
-            "install",
-            "--quiet",
-            "--disable-pip-version-check",
-            &format!("onnxruntime=={ONNXRUNTIME_VERSION}"),
-        ])
-        .status()
-        .map_err(|e| fail(format!("pip: {e}")))?;
-    if !status.success() {
-        return Err(fail(format!("pip exited with {status}")));
-    }
+    ONNXRUNTIME_WHEEL
+        .install(&venv)
+        .map_err(|why| InferenceError::RuntimeNotFound { looked: vec![why] })?;
     find(None)
 }
 
@@ -269,9 +160,15 @@ mod tests {
         std::fs::create_dir_all(&capi).expect("dirs");
         std::fs::write(capi.join("libonnxruntime.so.1.32.0"), b"").expect("file");
         std::fs::write(capi.join("other.so"), b"").expect("file");
-        let found = in_site_packages(&root.join("lib")).expect("found");
+        let found = ONNXRUNTIME_WHEEL
+            .in_site_packages(&root.join("lib"))
+            .expect("found");
         assert!(found.ends_with("libonnxruntime.so.1.32.0"));
-        assert!(in_site_packages(&root.join("nothing")).is_none());
+        assert!(
+            ONNXRUNTIME_WHEEL
+                .in_site_packages(&root.join("nothing"))
+                .is_none()
+        );
         let _ = std::fs::remove_dir_all(&root);
     }
 }

@@ -17,6 +17,7 @@
 //! command timeout), so no caller reaches the hardware unfiltered.
 
 pub mod safety;
+pub mod velocity_driver;
 pub mod wire;
 
 use nalgebra::{Isometry3, SVector};

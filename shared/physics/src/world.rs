@@ -1,12 +1,13 @@
 //! [`PhysicsWorld`]: the PR2 arm with the Shadow hand and the scene, on MuJoCo.
 //!
-//! **Arm** (7 joints of [`PR2_ARM_JOINTS`]): the simulated PR2 driver's velocity loop.
-//! Each step the commanded velocity goes through a first-order lag (`velocity_lag_s`),
-//! an acceleration clamp and the URDF velocity limit (or, once the newest command is
-//! older than `command_timeout_s`, a braking ramp to zero, as the real driver's watchdog
-//! does); the result is integrated into a position reference, kept inside the joint
-//! limits and within `max_tracking_error_rad` of the measured position (no wind-up while
-//! the arm is blocked). A MuJoCo position servo with velocity feed-forward tracks it,
+//! **Arm** (7 joints of [`PR2_ARM_JOINTS`]): the simulated PR2 driver's velocity loop,
+//! [`ArmSim`] (the previous simulator's kinematic arm): each step the commanded velocity
+//! goes through a first-order lag (`velocity_lag_s`), an acceleration clamp and the URDF
+//! velocity limit (or, once the newest command is older than `command_timeout_s`, a
+//! constant-deceleration ramp to zero, as the real driver's watchdog does) and is
+//! integrated into a position reference inside the joint limits, here also kept within
+//! `max_tracking_error_rad` of the measured position (no wind-up while the arm is
+//! blocked). A MuJoCo position servo with velocity feed-forward tracks it,
 //! `tau = kp (q_ref - q) + kv (v_ref - qd)`, clamped to the URDF effort, its damping
 //! integrated implicitly (`implicitfast`). Gravity and Coriolis torques of the arm's
 //! joints are compensated by the true model (the PR2's spring counterbalance and its
@@ -25,9 +26,10 @@
 //! finger.
 
 use mujoco_rs::prelude::*;
-use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use nalgebra::{Isometry3, Quaternion, SVector, Translation3, UnitQuaternion};
+use teleop_hardware::velocity_driver::{ArmJointLimits, ArmSim};
 use teleop_interfaces::joints::{PR2_ARM_JOINTS, SHADOW_FINGER_JOINTS};
-use teleop_kinematics::{Robot, robots};
+use teleop_kinematics::{JointLimits, Robot, robots};
 
 use crate::error::PhysicsError;
 use crate::mjcf::{JointDynamics, RobotMjcf, num};
@@ -117,18 +119,6 @@ pub struct PhysicsConfig {
     pub hand_initial_rad: [f64; HAND_DOF],
 }
 
-/// The simulated PR2 driver's state ([module docs](self)).
-#[derive(Debug, Clone)]
-struct ArmDriver {
-    command: [f64; ARM_DOF],
-    command_time_s: Option<f64>,
-    v_ref: [f64; ARM_DOF],
-    q_ref: [f64; ARM_DOF],
-    lower: [f64; ARM_DOF],
-    upper: [f64; ARM_DOF],
-    v_max: [f64; ARM_DOF],
-}
-
 /// Indices of one joint in MuJoCo's arrays.
 #[derive(Debug, Clone, Copy)]
 struct JointIdx {
@@ -149,7 +139,8 @@ pub struct PhysicsWorld {
     touch: [Vec<usize>; 5],
     /// Bodies of the scene's objects, in [`SceneSpec::objects`] order.
     objects: Vec<(String, usize)>,
-    driver: ArmDriver,
+    /// The PR2 driver's velocity loop: its position and velocity are the servos' reference.
+    driver: ArmSim<ARM_DOF>,
     hand_torque: [f64; HAND_DOF],
 }
 
@@ -202,6 +193,7 @@ pub fn world_mjcf(
     for j in SHADOW_FINGER_JOINTS {
         dynamics.push((j.to_owned(), finger));
     }
+    let arm_limits = arm_joint_limits(robot)?;
     let mass_scale = finger_link_mass_scale(robot, p.finger_mass_scale)?;
     let mjcf = RobotMjcf {
         robot,
@@ -231,10 +223,7 @@ pub fn world_mjcf(
     xml.push_str(&bodies);
     xml.push_str("  </worldbody>\n  <actuator>\n");
     for (i, j) in PR2_ARM_JOINTS.iter().enumerate() {
-        let effort = robot
-            .joint(robot.joint_id(j).map_err(|_| missing("joint", j))?)
-            .limits
-            .map_or(30.0, |l| l.effort);
+        let effort = arm_limits[i].map_or(30.0, |l| l.effort);
         xml.push_str(&format!(
             "    <position name=\"act_{j}\" joint=\"{j}\" kp=\"{}\" kv=\"{}\" forcerange=\"{} {}\"/>\n",
             num(p.arm_kp[i]),
@@ -261,6 +250,17 @@ pub fn world_mjcf(
         .try_into()
         .map_err(|_| PhysicsError::Model("five BioTac links expected".into()))?;
     Ok((xml, sites))
+}
+
+/// The URDF limits of the arm's joints ([`PR2_ARM_JOINTS`] order).
+fn arm_joint_limits(robot: &Robot) -> Result<[Option<JointLimits>; ARM_DOF], PhysicsError> {
+    let mut out = [None; ARM_DOF];
+    for (i, j) in PR2_ARM_JOINTS.iter().enumerate() {
+        out[i] = robot
+            .joint(robot.joint_id(j).map_err(|_| missing("joint", j))?)
+            .limits;
+    }
+    Ok(out)
 }
 
 /// The factor `scale` for every link moved by a finger joint.
@@ -359,22 +359,27 @@ impl PhysicsWorld {
                 obj_id(&model, MjtObjBase::mjOBJ_BODY, "body", &o.name)?,
             ));
         }
-        let mut lower = [0.0; ARM_DOF];
-        let mut upper = [0.0; ARM_DOF];
-        let mut v_max = [0.0; ARM_DOF];
-        for (i, j) in PR2_ARM_JOINTS.iter().enumerate() {
-            let l = robot
-                .joint(robot.joint_id(j).map_err(|_| missing("joint", j))?)
-                .limits;
-            let (lo, hi, v) = match l {
+        let p = &config.robot;
+        let limits = arm_joint_limits(robot)?.map(|l| {
+            let (lower_rad, upper_rad, velocity_rad_s) = match l {
                 Some(l) if l.is_bounded() => (l.lower, l.upper, l.velocity),
                 Some(l) => (f64::NEG_INFINITY, f64::INFINITY, l.velocity),
                 None => (f64::NEG_INFINITY, f64::INFINITY, 1.0),
             };
-            lower[i] = lo;
-            upper[i] = hi;
-            v_max[i] = v;
-        }
+            ArmJointLimits {
+                lower_rad,
+                upper_rad,
+                velocity_rad_s,
+                acceleration_rad_s2: p.arm_acceleration_limit_rad_s2,
+            }
+        });
+        let driver = ArmSim::new(
+            limits,
+            &SVector::from(config.arm_initial_rad),
+            0.0,
+            p.arm_command_timeout_s,
+        )
+        .with_lags(p.arm_velocity_lag_s);
         let data = MjData::new(Box::new(model));
         let mut world = Self {
             data,
@@ -384,15 +389,7 @@ impl PhysicsWorld {
             hand,
             touch,
             objects,
-            driver: ArmDriver {
-                command: [0.0; ARM_DOF],
-                command_time_s: None,
-                v_ref: [0.0; ARM_DOF],
-                q_ref: config.arm_initial_rad,
-                lower,
-                upper,
-                v_max,
-            },
+            driver,
             hand_torque: [0.0; HAND_DOF],
         };
         world.set_positions(&config.arm_initial_rad, &config.hand_initial_rad)?;
@@ -455,13 +452,12 @@ impl PhysicsWorld {
                 qvel[j.dof] = 0.0;
             }
         }
-        self.driver.q_ref = *arm;
-        self.driver.v_ref = [0.0; ARM_DOF];
+        self.driver.set_position(&SVector::from(*arm));
         self.data.forward();
         Ok(())
     }
 
-    /// Commands arm joint velocities, rad/s, at simulation time `now_s` (the driver's
+    /// Commands arm joint velocities, rad/s, at the current simulation time (the driver's
     /// watchdog counts from there).
     ///
     /// # Errors
@@ -476,8 +472,8 @@ impl PhysicsWorld {
                 why: "not finite".into(),
             });
         }
-        self.driver.command = *velocity_rad_s;
-        self.driver.command_time_s = Some(self.data.time());
+        self.driver
+            .command(&SVector::from(*velocity_rad_s), self.data.time());
         Ok(())
     }
 
@@ -499,35 +495,10 @@ impl PhysicsWorld {
     }
 
     fn driver_step(&mut self, dt: f64) {
-        let p = &self.params;
-        let now = self.data.time();
-        let fresh = self
-            .driver
-            .command_time_s
-            .is_some_and(|t| now - t <= p.arm_command_timeout_s);
-        let a_max = p.arm_acceleration_limit_rad_s2 * dt;
-        let q = self.arm_position();
-        let d = &mut self.driver;
-        #[allow(clippy::needless_range_loop)] // one index into seven parallel arrays
-        for i in 0..ARM_DOF {
-            let target = if fresh {
-                d.command[i].clamp(-d.v_max[i], d.v_max[i])
-            } else {
-                0.0
-            };
-            let lag = p.arm_velocity_lag_s[i].max(1e-6);
-            let lagged = d.v_ref[i] + (target - d.v_ref[i]) * (1.0 - (-dt / lag).exp());
-            let mut v = d.v_ref[i] + (lagged - d.v_ref[i]).clamp(-a_max, a_max);
-            v = v.clamp(-d.v_max[i], d.v_max[i]);
-            let mut qr = d.q_ref[i] + v * dt;
-            if qr <= d.lower[i] || qr >= d.upper[i] {
-                qr = qr.clamp(d.lower[i], d.upper[i]);
-                v = 0.0;
-            }
-            let e = p.arm_max_tracking_error_rad;
-            d.q_ref[i] = qr.clamp(q[i] - e, q[i] + e);
-            d.v_ref[i] = v;
-        }
+        self.driver.step(self.data.time(), dt);
+        let measured = SVector::from(self.arm_position());
+        self.driver
+            .hold_within(&measured, self.params.arm_max_tracking_error_rad);
     }
 
     /// Advances the world by one step.
@@ -547,11 +518,11 @@ impl PhysicsWorld {
             for (i, j) in self.arm.iter().enumerate() {
                 let kp = self.params.arm_kp[i];
                 let ff = if kp > 0.0 {
-                    self.params.arm_kv[i] / kp * self.driver.v_ref[i]
+                    self.params.arm_kv[i] / kp * self.driver.velocity_rad_s()[i]
                 } else {
                     0.0
                 };
-                ctrl[j.actuator] = self.driver.q_ref[i] + ff;
+                ctrl[j.actuator] = self.driver.position_rad()[i] + ff;
             }
             for (i, j) in self.hand.iter().enumerate() {
                 ctrl[j.actuator] = self.hand_torque[i];
@@ -666,6 +637,6 @@ impl PhysicsWorld {
     /// The driver's position reference, rad (what the servo tracks).
     #[must_use]
     pub fn arm_reference(&self) -> [f64; ARM_DOF] {
-        self.driver.q_ref
+        (*self.driver.position_rad()).into()
     }
 }

@@ -17,10 +17,19 @@ struct Run {
     max_fingertip_force_n: f64,
 }
 
-fn run(script: &GraspLiftCarry, seconds: f64) -> anyhow::Result<Run> {
+/// The world of the scripted grasp, with the cube `gap_m` below the palm.
+fn cube_under_palm(gap_m: f64) -> anyhow::Result<PhysicsWorld> {
     let robot = robots::pr2_arm()?;
-    let config = CubeUnderPalm::default().config(&robot)?;
-    let mut world = PhysicsWorld::new(&robot, &config)?;
+    let config = CubeUnderPalm {
+        gap_m,
+        ..CubeUnderPalm::default()
+    }
+    .config(&robot)?;
+    Ok(PhysicsWorld::new(&robot, &config)?)
+}
+
+fn run(script: &GraspLiftCarry, seconds: f64) -> anyhow::Result<Run> {
+    let mut world = cube_under_palm(CubeUnderPalm::default().gap_m)?;
     let cube =
         |w: &PhysicsWorld| -> Point3<f64> { w.object_poses()[0].1.translation.vector.into() };
     let start = cube(&world);
@@ -93,13 +102,7 @@ fn with_the_hand_open_the_same_motion_leaves_the_cube_on_the_table() -> anyhow::
 
 #[test]
 fn a_cube_rests_on_the_table() -> anyhow::Result<()> {
-    let robot = robots::pr2_arm()?;
-    let config = CubeUnderPalm {
-        gap_m: 0.05,
-        ..CubeUnderPalm::default()
-    }
-    .config(&robot)?;
-    let mut world = PhysicsWorld::new(&robot, &config)?;
+    let mut world = cube_under_palm(0.05)?;
     let start = world.object_poses()[0].1;
     for _ in 0..1000 {
         world.set_hand_torques(&[0.0; HAND_DOF])?;
@@ -114,9 +117,7 @@ fn a_cube_rests_on_the_table() -> anyhow::Result<()> {
 
 #[test]
 fn non_finite_commands_are_refused_and_change_nothing() -> anyhow::Result<()> {
-    let robot = robots::pr2_arm()?;
-    let config = CubeUnderPalm::default().config(&robot)?;
-    let mut world = PhysicsWorld::new(&robot, &config)?;
+    let mut world = cube_under_palm(CubeUnderPalm::default().gap_m)?;
     let mut torques = [0.1; HAND_DOF];
     world.set_hand_torques(&torques)?;
     torques[3] = f64::NAN;
@@ -170,13 +171,7 @@ fn a_bad_scene_is_refused_with_its_name() -> anyhow::Result<()> {
 
 #[test]
 fn the_arm_stops_when_commands_stop() -> anyhow::Result<()> {
-    let robot = robots::pr2_arm()?;
-    let config = CubeUnderPalm {
-        gap_m: 0.2,
-        ..CubeUnderPalm::default()
-    }
-    .config(&robot)?;
-    let mut world = PhysicsWorld::new(&robot, &config)?;
+    let mut world = cube_under_palm(0.2)?;
     let mut v = [0.0; 7];
     v[0] = 0.3;
     world.command_arm_velocity(&v)?;

@@ -97,7 +97,6 @@
 //! ([`NoiseConfig`], default none) comes from a seeded ChaCha8. Same config, seed and
 //! command sequence give bit-identical states.
 
-mod arm;
 pub mod camera;
 pub mod config;
 pub mod error;
@@ -109,7 +108,6 @@ pub mod operator_site;
 mod scenarios;
 mod world;
 
-pub use arm::{ArmJointLimits, ArmSim};
 pub use camera::{CameraError, CameraViewsConfig, SceneCameras, View};
 pub use config::{
     ArmSimConfig, ContactConfig, HandSimConfig, NoiseConfig, PerturbationConfig, WorldConfig,
@@ -118,4 +116,5 @@ pub use error::SimError;
 pub use hardware::{SharedWorld, SimArm, SimHand, share};
 pub use objects::{ExternalLoad, LoadTarget, Object, ObjectShape};
 pub use scenarios::{CupGraspConfig, TouchingTaskConfig, WORKING_POSTURE_RAD};
+pub use teleop_hardware::velocity_driver::{ArmJointLimits, ArmSim};
 pub use world::{ContactInfo, Perturbation, World};

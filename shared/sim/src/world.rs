@@ -10,11 +10,11 @@ use teleop_interfaces::joints::{
 };
 use teleop_kinematics::{GravityModel, KinematicState, LinkId, Robot, robots};
 
-use super::arm::{ArmJointLimits, ArmSim};
 use super::config::WorldConfig;
 use super::error::SimError;
 use super::geometry::{Capsule, capsule_distance, penetration};
 use super::objects::{ExternalLoad, LoadTarget, Object, ResolvedTarget};
+use teleop_hardware::velocity_driver::{ArmJointLimits, ArmSim};
 
 /// Finger links by fingertip ([`FINGERTIPS`] order): the BioTac is the distal link.
 const DISTAL_LINKS: [&str; 5] = robots::shadow::DISTALS;

@@ -49,9 +49,9 @@ use teleop_render::{
     Renderer, Scene,
 };
 
-use crate::arm::{ArmJointLimits, ArmSim};
 pub use mocap::{Mocap, MocapConfig, MocapCounts, MocapReading};
 pub use tasks::{TaskKind, TaskSample, TaskScript};
+use teleop_hardware::velocity_driver::{ArmJointLimits, ArmSim};
 
 /// UR5 joint count.
 pub const UR5_DOF: usize = 6;

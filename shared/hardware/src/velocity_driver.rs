@@ -1,6 +1,9 @@
-//! A simulated velocity-commanded arm of `N` joints, kinematic (no dynamics: the PR2's
-//! and the UR5's joint velocity loops are stiff against their loads): the PR2 arm
-//! (+ Shadow wrist, 7 joints) of the robot site and the UR5 (6) of the operator site.
+//! The response model of a velocity-commanded arm driver of `N` joints, kinematic (no
+//! dynamics: the PR2's and the UR5's joint velocity loops are stiff against their
+//! loads). The simulators use it: the previous robot-site world moves the PR2 arm
+//! (+ Shadow wrist, 7 joints) with it, the operator site the UR5 (6), and the MuJoCo
+//! world (`teleop-physics`) takes its position and velocity as the reference its joint
+//! servos track.
 //!
 //! Per step `dt`, for each joint:
 //! 1. first-order lag towards the commanded velocity, exactly discretised:
@@ -129,6 +132,18 @@ impl<const N: usize> ArmSim<N> {
         &self.limits
     }
 
+    /// Keeps every joint's position within `max_error_rad` of `measured_rad` (a driver
+    /// whose integrated reference must not run away from a blocked arm), velocities
+    /// unchanged.
+    pub fn hold_within(&mut self, measured_rad: &SVector<f64, N>, max_error_rad: f64) {
+        for i in 0..N {
+            self.position_rad[i] = self.position_rad[i].clamp(
+                measured_rad[i] - max_error_rad,
+                measured_rad[i] + max_error_rad,
+            );
+        }
+    }
+
     /// Places the arm (clamped into its limits) at rest; for scenario setup.
     pub fn set_position(&mut self, position_rad: &SVector<f64, N>) {
         for i in 0..N {
@@ -159,6 +174,18 @@ mod tests {
             arm.step(f64::from(k) * 0.001, 0.001);
         }
         assert_eq!(arm.position_rad(), &SVector::<f64, 7>::zeros());
+    }
+
+    #[test]
+    fn hold_within_keeps_the_position_near_the_measurement() {
+        let mut arm = ArmSim::new(limits(), &SVector::repeat(0.5), 0.03, 0.1);
+        arm.hold_within(&SVector::repeat(0.1), 0.2);
+        assert!((arm.position_rad()[0] - 0.3).abs() < 1e-12);
+        arm.hold_within(&SVector::repeat(0.4), 0.2);
+        assert!(
+            (arm.position_rad()[0] - 0.3).abs() < 1e-12,
+            "inside: unchanged"
+        );
     }
 
     #[test]
