@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds the runtime image `teleop:local` WITHOUT a container registry: the binaries
 # built on this host (Debian 12, the same glibc as the base image), stripped, with the
-# ONNX Runtime library, the hand model and the configs, on the base image that
+# ONNX Runtime and MuJoCo libraries, the hand model and the configs, on the base image that
 # make-base-image.sh makes from Debian's packages. The registry way is
 # deploy/docker/Dockerfile (multi-stage, FROM rust / debian:bookworm-slim).
 #
@@ -43,6 +43,11 @@ cp "$ORT" "$CTX/lib/libonnxruntime.so"
 for extra in "$(dirname "$ORT")"/libonnxruntime_providers_shared.so; do
   [[ -f $extra ]] && cp "$extra" "$CTX/lib/"
 done
+# MuJoCo: the library remote_sim links (the pinned `mujoco` wheel's, found or installed
+# by the build), where the binaries' run path ($ORIGIN/../lib) finds it in the image.
+MJ=$(ldd "$TARGET/release/remote_sim" | awk '/libmujoco/ {print $3}')
+[[ -f $MJ ]] || { echo "build-images: remote_sim links no MuJoCo library (ldd: $MJ)"; exit 1; }
+cp -L "$MJ" "$CTX/lib/"
 # The model and its offline evaluation (the report judges the hand joint goal by it).
 cp "$ROOT/local_site/models/hand/model.onnx" "$ROOT/local_site/models/hand/report.json" \
   "$CTX/local_site/models/hand/"

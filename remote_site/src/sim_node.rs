@@ -9,6 +9,7 @@
 //! end-effector speed, effort, command timeout). The world steps in real time on the
 //! node's clock.
 
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
@@ -23,8 +24,9 @@ use teleop_interfaces::topics;
 use teleop_msgs::{Image, Lifecycle};
 use teleop_node::{FinalReport, Node, NodeConfig, Periodic, SchedulingConfig};
 use teleop_sim::{
-    CameraViewsConfig, CupGraspConfig, SceneCameras, SharedWorld, SimArm, SimHand,
-    TouchingTaskConfig, View, WORKING_POSTURE_RAD, World, WorldConfig,
+    CameraViewsConfig, CupGraspConfig, MujocoWorld, MujocoWorldConfig, PickSceneConfig, RobotWorld,
+    SceneCameras, SimArm, SimHand, TouchingTaskConfig, View, WORKING_POSTURE_RAD, World,
+    WorldConfig,
 };
 
 /// Which world to build.
@@ -37,7 +39,25 @@ pub enum SceneKind {
     Touching,
     /// A cup held in place to grasp (thesis Fig. 8.8).
     CupGrasp,
+    /// A table with a can and a cube free on it (thesis ch. 6.4's pick tasks); the
+    /// physical engine only.
+    Pick,
 }
+
+/// Which simulator moves the robots.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Engine {
+    /// MuJoCo (`teleop_sim::MujocoWorld`): rigid-body dynamics of the whole robot, the
+    /// real shapes' contacts, free objects.
+    Mujoco,
+    /// The joint-space model (`teleop_sim::World`): a kinematic arm, per-joint finger
+    /// dynamics, penalty contacts with fixed objects.
+    JointSpace,
+}
+
+/// The world the simulator process owns, whichever engine moves it.
+pub type SimWorld = Arc<Mutex<dyn RobotWorld>>;
 
 /// The hardware safety layer of the simulated robots.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -73,12 +93,21 @@ impl Default for SimSafetyConfig {
 pub struct SimNodeConfig {
     pub node_name: String,
     pub scene: SceneKind,
+    /// The simulator: `mujoco` (default) or `joint_space` (the previous model, kept
+    /// until the ch. 8 hand scenarios are measured in MuJoCo).
+    pub engine: Engine,
     /// Rate of the state messages (and of the world's catching up with the clock), Hz.
     pub state_rate_hz: f64,
     /// World settings for `scene = "free"`.
     pub world: WorldConfig,
     pub touching: TouchingTaskConfig,
     pub cup_grasp: CupGraspConfig,
+    /// The scene of `scene = "pick"`.
+    pub pick: PickSceneConfig,
+    /// The physical world's settings (`engine = "mujoco"`): robot parameters, model
+    /// mismatch, object variation, noise. The scene's objects and postures come from
+    /// the scene's own section.
+    pub mujoco: MujocoWorldConfig,
     /// The top and side camera views, rendered from the world and published on
     /// `teleop/hw/camera/{top,side}/image` as a camera driver would.
     pub cameras: CameraViewsConfig,
@@ -93,7 +122,8 @@ impl Default for SimNodeConfig {
     fn default() -> Self {
         Self {
             node_name: "remote_sim".into(),
-            scene: SceneKind::Touching,
+            scene: SceneKind::Pick,
+            engine: Engine::Mujoco,
             state_rate_hz: topics::HW_PR2_ARM_STATE.spec.rate_hz,
             world: WorldConfig::default(),
             touching: TouchingTaskConfig {
@@ -101,6 +131,8 @@ impl Default for SimNodeConfig {
                 ..TouchingTaskConfig::default()
             },
             cup_grasp: CupGraspConfig::default(),
+            pick: PickSceneConfig::default(),
+            mujoco: MujocoWorldConfig::default(),
             cameras: CameraViewsConfig::default(),
             safety: SimSafetyConfig::default(),
             scheduling: SchedulingConfig::default(),
@@ -152,12 +184,33 @@ impl NodeConfig for SimNodeConfig {
 /// Builds the configured world.
 ///
 /// # Errors
-/// The simulator's configuration errors.
-pub fn build_world(cfg: &SimNodeConfig) -> anyhow::Result<World> {
-    Ok(match cfg.scene {
-        SceneKind::Free => World::new(cfg.world.clone())?,
-        SceneKind::Touching => World::touching_task(&cfg.touching)?,
-        SceneKind::CupGrasp => World::cup_grasp(&cfg.cup_grasp)?,
+/// The simulator's configuration errors; a scene the engine lacks.
+pub fn build_world(cfg: &SimNodeConfig) -> anyhow::Result<SimWorld> {
+    let joint_world = || -> anyhow::Result<Option<World>> {
+        Ok(match cfg.scene {
+            SceneKind::Free => Some(World::new(cfg.world.clone())?),
+            SceneKind::Touching => Some(World::touching_task(&cfg.touching)?),
+            SceneKind::CupGrasp => Some(World::cup_grasp(&cfg.cup_grasp)?),
+            SceneKind::Pick => None,
+        })
+    };
+    Ok(match cfg.engine {
+        Engine::JointSpace => {
+            let Some(world) = joint_world()? else {
+                anyhow::bail!(
+                    "scene {:?} needs engine = \"mujoco\" (its objects are free)",
+                    cfg.scene
+                );
+            };
+            Arc::new(Mutex::new(world))
+        }
+        Engine::Mujoco => {
+            let world = match joint_world()? {
+                Some(world) => MujocoWorld::from_joint_world(&world, cfg.mujoco.clone())?,
+                None => MujocoWorld::new(&cfg.pick.scene()?, cfg.pick.world_config(&cfg.mujoco))?,
+            };
+            Arc::new(Mutex::new(world))
+        }
     })
 }
 
@@ -166,9 +219,9 @@ pub fn build_world(cfg: &SimNodeConfig) -> anyhow::Result<World> {
 #[derive(Debug)]
 pub struct SimNode {
     period: Duration,
-    world: SharedWorld,
-    arm: SafeArm<7, SimArm>,
-    hand: SafeHand<SimHand>,
+    world: SimWorld,
+    arm: SafeArm<7, SimArm<dyn RobotWorld>>,
+    hand: SafeHand<SimHand<dyn RobotWorld>>,
     arm_endpoint: ArmEndpoint<7>,
     hand_endpoint: HandEndpoint,
     cameras: Option<CameraViews>,
@@ -187,15 +240,25 @@ impl SimNode {
     /// World, safety or camera configuration errors; bus declarations.
     pub async fn new(cfg: &SimNodeConfig, bus: &Bus) -> anyhow::Result<Self> {
         let world = build_world(cfg)?;
-        let cameras = CameraViews::open(bus, &cfg.cameras, &world).await?;
-        let sim_start_s = world.time_s();
-        let (world, sim_arm, sim_hand) = teleop_sim::share(world);
+        let (scene_cameras, sim_start_s) = {
+            let w = world
+                .lock()
+                .map_err(|_| anyhow::anyhow!("world lock poisoned"))?;
+            let cameras = if cfg.cameras.enabled {
+                Some(SceneCameras::new(&*w, &cfg.cameras)?)
+            } else {
+                None
+            };
+            (cameras, w.time_s())
+        };
+        let cameras = CameraViews::open(bus, scene_cameras).await?;
+        let (sim_arm, sim_hand) = (SimArm::new(world.clone()), SimHand::new(world.clone()));
         let arm_safety = ArmSafety::new(
             teleop_kinematics::robots::pr2_arm_chain()?,
             cfg.safety.arm.clone(),
         )?;
         let hand_safety = HandSafety::new(HandLimits::shadow()?, cfg.safety.hand)?;
-        tracing::info!(scene = ?cfg.scene, arm_from = %cfg.safety.arm_controller_node,
+        tracing::info!(scene = ?cfg.scene, engine = ?cfg.engine, arm_from = %cfg.safety.arm_controller_node,
             hand_from = %cfg.safety.hand_controller_node, "simulator running in real time");
         Ok(Self {
             period: Duration::from_secs_f64(1.0 / cfg.state_rate_hz),
@@ -215,7 +278,7 @@ impl SimNode {
     }
 
     /// The world (ground truth).
-    pub fn world(&self) -> &SharedWorld {
+    pub fn world(&self) -> &SimWorld {
         &self.world
     }
 
@@ -254,9 +317,11 @@ impl Node for SimNode {
             return;
         };
         let lag = (now_s - start) - (world.time_s() - self.sim_start_s);
-        if lag > 0.0 {
-            world.step(lag.min(0.1));
-        }
+        let stepped = if lag > 0.0 {
+            world.advance(lag.min(0.1))
+        } else {
+            Ok(())
+        };
         // Stamped with the node clock at the measurement, as a driver would (the
         // world's own time starts at zero).
         let (mut arm_state, mut hand_state) = (world.arm_state(), world.hand_state());
@@ -264,11 +329,14 @@ impl Node for SimNode {
         hand_state.time_s = now_s;
         let render = self.cameras.is_some() && self.camera_due.due(now_s);
         let camera = if render {
-            self.cameras.as_mut().map(|c| c.render(&world, now_s))
+            self.cameras.as_mut().map(|c| c.render(&*world, now_s))
         } else {
             None
         };
         drop(world);
+        if let Err(e) = stepped {
+            self.fail("world", e);
+        }
         if let Err(e) = self.arm_endpoint.publish_state(&arm_state) {
             self.fail("arm state", e);
         }
@@ -357,17 +425,13 @@ struct CameraViews {
 }
 
 impl CameraViews {
-    /// `None` when the cameras are disabled.
-    async fn open(
-        bus: &Bus,
-        config: &CameraViewsConfig,
-        world: &World,
-    ) -> anyhow::Result<Option<Self>> {
-        if !config.enabled {
+    /// `None` when the cameras are disabled (`cameras` is `None`).
+    async fn open(bus: &Bus, cameras: Option<SceneCameras>) -> anyhow::Result<Option<Self>> {
+        let Some(cameras) = cameras else {
             return Ok(None);
-        }
+        };
         Ok(Some(Self {
-            cameras: SceneCameras::new(world, config)?,
+            cameras,
             publishers: [
                 bus.publisher(&topics::HW_CAMERA_TOP).await?,
                 bus.publisher(&topics::HW_CAMERA_SIDE).await?,
@@ -378,7 +442,7 @@ impl CameraViews {
     }
 
     /// Renders both views and publishes them, stamped `now_s` (node clock).
-    fn render(&mut self, world: &World, now_s: f64) -> anyhow::Result<()> {
+    fn render(&mut self, world: &dyn RobotWorld, now_s: f64) -> anyhow::Result<()> {
         self.cameras.render(world)?;
         // Seconds since the epoch: far inside the i64 ns range.
         #[allow(clippy::cast_possible_truncation)]

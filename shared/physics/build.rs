@@ -7,7 +7,9 @@
 //! crate that links this one. Cargo puts search paths inside the target directory on the
 //! library path of what it runs (`cargo run`, `cargo test`), so the binaries find it there.
 //! With `MUJOCO_DYNAMIC_LINK_DIR` set, mujoco-rs links from that directory and this script
-//! does nothing.
+//! only passes it on. Crates whose binaries link MuJoCo read the directory as
+//! `DEP_TELEOP_MUJOCO_LIB_DIR` and write it into the binaries' run path, so a binary
+//! started by anyone (the launcher, a test, a shell) finds the library.
 
 #[path = "src/library.rs"]
 #[allow(dead_code)]
@@ -25,7 +27,8 @@ fn main() {
         println!("cargo::rerun-if-env-changed={var}");
     }
     println!("cargo::rerun-if-changed=src/library.rs");
-    if std::env::var_os("MUJOCO_DYNAMIC_LINK_DIR").is_some() {
+    if let Some(dir) = std::env::var_os("MUJOCO_DYNAMIC_LINK_DIR") {
+        println!("cargo::metadata=lib_dir={}", PathBuf::from(dir).display());
         return;
     }
     let found = match library::find_or_install() {
@@ -55,6 +58,9 @@ fn main() {
         }
     }
     println!("cargo::rustc-link-search=native={}", lib_dir.display());
+    // For the build scripts of crates with binaries (`links` in Cargo.toml): they write
+    // this directory into their binaries' run path.
+    println!("cargo::metadata=lib_dir={}", lib_dir.display());
     println!(
         "cargo::rustc-env=TELEOP_MUJOCO_LINKED={} ({})",
         found.path.display(),

@@ -217,6 +217,11 @@ pub struct NodeArgs {
     /// time sharing (overrides the config's `scheduling.realtime_priority`).
     #[arg(long, value_parser = clap::value_parser!(u8).range(0..=crate::sched::MAX_REALTIME_PRIORITY as i64))]
     pub realtime_priority: Option<u8>,
+    /// Override one config field, KEY=VALUE with KEY a dotted path (`engine=mujoco`,
+    /// `mujoco.perturbation.seed=7`) and VALUE a TOML value (a bare word is a string);
+    /// repeatable, applied after `--config` and before validation.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
 }
 
 impl NodeArgs {
@@ -249,6 +254,9 @@ impl NodeArgs {
             Some(path) => config::load_toml(path)?,
             None => C::default(),
         };
+        if !self.set.is_empty() {
+            cfg = config::apply_overrides(&cfg, &self.set)?;
+        }
         self.zenoh.apply(cfg.bus_mut());
         config::validate_all(&mut cfg).map_err(ConfigError::Invalid)?;
         crate::tls_runtime::ensure_safe_runtime(cfg.bus_mut()).map_err(|e| {

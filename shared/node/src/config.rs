@@ -95,6 +95,53 @@ pub fn parse_toml<T: DeserializeOwned>(text: &str) -> Result<T, String> {
     toml::from_str(text).map_err(|e| e.to_string().trim_end().to_owned())
 }
 
+/// Applies `--set KEY=VALUE` overrides to a config: `KEY` is a dotted path into the
+/// config's TOML form (`engine`, `mujoco.perturbation.seed`), `VALUE` a TOML value
+/// (`0.5`, `true`, `[1, 2]`, `"text"`; a bare word is taken as a string). The result
+/// goes through the config's own deserialization, so an unknown field or a wrong type
+/// is refused by name, as in a file.
+///
+/// # Errors
+/// [`ConfigError::Invalid`] naming the override at fault.
+pub fn apply_overrides<T: Serialize + DeserializeOwned>(
+    cfg: &T,
+    overrides: &[String],
+) -> Result<T, ConfigError> {
+    let mut root = toml::Value::try_from(cfg).map_err(|e| ConfigError::Serialize(e.to_string()))?;
+    for o in overrides {
+        let bad = |why: &str| ConfigError::Invalid(format!("--set {o}: {why}"));
+        let (key, value) = o.split_once('=').ok_or_else(|| bad("expected KEY=VALUE"))?;
+        let (key, value) = (key.trim(), value.trim());
+        let path: Vec<&str> = key.split('.').collect();
+        if path.iter().any(|p| p.is_empty()) {
+            return Err(bad("empty key"));
+        }
+        let value = match toml::from_str::<toml::Table>(&format!("v = {value}")) {
+            Ok(mut t) => t.remove("v").ok_or_else(|| bad("no value"))?,
+            Err(_) => toml::Value::String(value.to_owned()),
+        };
+        let (last, parents) = path.split_last().ok_or_else(|| bad("empty key"))?;
+        let mut table = root
+            .as_table_mut()
+            .ok_or_else(|| bad("the config is not a table"))?;
+        for (depth, p) in parents.iter().enumerate() {
+            table = table
+                .get_mut(*p)
+                .and_then(toml::Value::as_table_mut)
+                .ok_or_else(|| {
+                    bad(&format!(
+                        "no section {:?} in this node's config",
+                        path[..=depth].join(".")
+                    ))
+                })?;
+        }
+        table.insert((*last).to_owned(), value);
+    }
+    root.try_into().map_err(|e: toml::de::Error| {
+        ConfigError::Invalid(format!("--set: {}", e.to_string().trim_end()))
+    })
+}
+
 /// Renders a config as TOML (for `--show-default-config`).
 ///
 /// # Errors
@@ -116,6 +163,23 @@ pub fn load_checked<C: NodeConfig>(path: &Path) -> Result<C, ConfigError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn overrides_set_nested_fields_and_refuse_unknown_ones() {
+        let cfg = BusConfig::default();
+        let out = apply_overrides(&cfg, &["domain_id=7".into(), "zenoh.mode=client".into()])
+            .expect("valid overrides");
+        assert_eq!(out.domain_id, 7);
+        assert_eq!(out.zenoh.mode, teleop_bus::Mode::Client);
+        let err = apply_overrides(&cfg, &["domain_idd=7".into()]).expect_err("unknown field");
+        assert!(err.to_string().contains("domain_idd"), "{err}");
+        let err = apply_overrides(&cfg, &["nope.x=1".into()]).expect_err("unknown section");
+        assert!(err.to_string().contains("nope"), "{err}");
+        let err = apply_overrides(&cfg, &["domain_id=many".into()]).expect_err("wrong type");
+        assert!(err.to_string().contains("--set"), "{err}");
+        let err = apply_overrides(&cfg, &["domain_id".into()]).expect_err("no value");
+        assert!(err.to_string().contains("KEY=VALUE"), "{err}");
+    }
 
     #[test]
     fn unknown_field_is_named() {

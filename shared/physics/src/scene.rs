@@ -28,6 +28,12 @@ pub enum ObjectShape {
     Sphere {
         radius_m: f64,
     },
+    /// Upright (axis along z): a cylinder of half height `half_length_m` with
+    /// hemispherical caps.
+    Capsule {
+        radius_m: f64,
+        half_length_m: f64,
+    },
 }
 
 impl ObjectShape {
@@ -42,6 +48,13 @@ impl ObjectShape {
                 format!("{} {}", num(radius_m), num(half_height_m)),
             ),
             ObjectShape::Sphere { radius_m } => ("sphere", num(radius_m)),
+            ObjectShape::Capsule {
+                radius_m,
+                half_length_m,
+            } => (
+                "capsule",
+                format!("{} {}", num(radius_m), num(half_length_m)),
+            ),
         }
     }
 
@@ -52,6 +65,10 @@ impl ObjectShape {
             ObjectShape::Box { half_m } => half_m[2],
             ObjectShape::Cylinder { half_height_m, .. } => half_height_m,
             ObjectShape::Sphere { radius_m } => radius_m,
+            ObjectShape::Capsule {
+                radius_m,
+                half_length_m,
+            } => radius_m + half_length_m,
         }
     }
 
@@ -63,6 +80,37 @@ impl ObjectShape {
                 half_height_m,
             } => vec![radius_m, half_height_m],
             ObjectShape::Sphere { radius_m } => vec![radius_m],
+            ObjectShape::Capsule {
+                radius_m,
+                half_length_m,
+            } => vec![radius_m, half_length_m],
+        }
+    }
+
+    /// The same shape with every size scaled by `s`.
+    #[must_use]
+    pub fn scaled(&self, s: f64) -> Self {
+        match *self {
+            ObjectShape::Box { half_m } => ObjectShape::Box {
+                half_m: half_m.map(|h| h * s),
+            },
+            ObjectShape::Cylinder {
+                radius_m,
+                half_height_m,
+            } => ObjectShape::Cylinder {
+                radius_m: radius_m * s,
+                half_height_m: half_height_m * s,
+            },
+            ObjectShape::Sphere { radius_m } => ObjectShape::Sphere {
+                radius_m: radius_m * s,
+            },
+            ObjectShape::Capsule {
+                radius_m,
+                half_length_m,
+            } => ObjectShape::Capsule {
+                radius_m: radius_m * s,
+                half_length_m: half_length_m * s,
+            },
         }
     }
 }
@@ -111,11 +159,12 @@ impl Default for TableSpec {
     }
 }
 
-/// The environment: table, objects and gravity.
+/// The environment: table (none for a scene of fixtures only), objects.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SceneSpec {
-    pub table: TableSpec,
+    #[serde(default)]
+    pub table: Option<TableSpec>,
     pub objects: Vec<ObjectSpec>,
 }
 
@@ -151,13 +200,14 @@ impl SceneSpec {
     /// [`PhysicsError::Invalid`] naming the object and the field.
     pub fn validate(&self) -> Result<(), PhysicsError> {
         let bad = |why: String| PhysicsError::Invalid { what: "scene", why };
-        let t = &self.table;
-        let table_ok = t.top_z_m.is_finite()
-            && t.top_z_m > 0.0
-            && t.size_xy_m.iter().all(|v| v.is_finite() && *v > 0.0)
-            && t.centre_xy_m.iter().all(|v| v.is_finite())
-            && t.friction.is_finite()
-            && t.friction > 0.0;
+        let table_ok = self.table.as_ref().is_none_or(|t| {
+            t.top_z_m.is_finite()
+                && t.top_z_m > 0.0
+                && t.size_xy_m.iter().all(|v| v.is_finite() && *v > 0.0)
+                && t.centre_xy_m.iter().all(|v| v.is_finite())
+                && t.friction.is_finite()
+                && t.friction > 0.0
+        });
         if !table_ok {
             return Err(bad("table: sizes and height must be finite and > 0".into()));
         }
@@ -215,33 +265,20 @@ impl SceneSpec {
         };
         let mut out = self.clone();
         for o in &mut out.objects {
-            let resting =
-                (o.position_m[2] - o.shape.half_height_m() - self.table.top_z_m).abs() < 1e-6;
+            let table_top = self.table.map(|t| t.top_z_m);
+            let resting = table_top
+                .is_some_and(|top| (o.position_m[2] - o.shape.half_height_m() - top).abs() < 1e-6);
             o.mass_kg *= factor(variation.mass_fraction, &mut rng);
             o.friction *= factor(variation.friction_fraction, &mut rng);
             let s = factor(variation.size_fraction, &mut rng);
-            o.shape = match o.shape {
-                ObjectShape::Box { half_m } => ObjectShape::Box {
-                    half_m: half_m.map(|h| h * s),
-                },
-                ObjectShape::Cylinder {
-                    radius_m,
-                    half_height_m,
-                } => ObjectShape::Cylinder {
-                    radius_m: radius_m * s,
-                    half_height_m: half_height_m * s,
-                },
-                ObjectShape::Sphere { radius_m } => ObjectShape::Sphere {
-                    radius_m: radius_m * s,
-                },
-            };
+            o.shape = o.shape.scaled(s);
             if o.free {
                 o.position_m[0] += variation.position_m * (2.0 * rng.random::<f64>() - 1.0);
                 o.position_m[1] += variation.position_m * (2.0 * rng.random::<f64>() - 1.0);
                 o.yaw_rad += variation.yaw_rad * (2.0 * rng.random::<f64>() - 1.0);
             }
-            if resting {
-                o.position_m[2] = self.table.top_z_m + o.shape.half_height_m();
+            if let (true, Some(top)) = (resting, table_top) {
+                o.position_m[2] = top + o.shape.half_height_m();
             }
         }
         out
@@ -250,23 +287,24 @@ impl SceneSpec {
     /// The `<worldbody>` part of the environment (floor, table, objects).
     pub(crate) fn worldbody_xml(&self) -> String {
         let mut s = String::new();
-        let t = &self.table;
         let env = format!("contype=\"{ENV_CONTYPE}\" conaffinity=\"{ENV_CONAFFINITY}\"");
         let _ = writeln!(
             s,
             "    <geom name=\"floor\" type=\"plane\" size=\"4 4 0.1\" {env} rgba=\"0.55 0.55 0.5 1\"/>"
         );
-        let _ = writeln!(
-            s,
-            "    <body name=\"table\" pos=\"{} {} {}\">\n      <geom name=\"table_top\" type=\"box\" size=\"{} {} {}\" {env} friction=\"{} 0.005 0.0001\" rgba=\"0.6 0.45 0.3 1\"/>\n    </body>",
-            num(t.centre_xy_m[0]),
-            num(t.centre_xy_m[1]),
-            num(t.top_z_m / 2.0),
-            num(t.size_xy_m[0] / 2.0),
-            num(t.size_xy_m[1] / 2.0),
-            num(t.top_z_m / 2.0),
-            num(t.friction)
-        );
+        if let Some(t) = &self.table {
+            let _ = writeln!(
+                s,
+                "    <body name=\"table\" pos=\"{} {} {}\">\n      <geom name=\"table_top\" type=\"box\" size=\"{} {} {}\" {env} friction=\"{} 0.005 0.0001\" rgba=\"0.6 0.45 0.3 1\"/>\n    </body>",
+                num(t.centre_xy_m[0]),
+                num(t.centre_xy_m[1]),
+                num(t.top_z_m / 2.0),
+                num(t.size_xy_m[0] / 2.0),
+                num(t.size_xy_m[1] / 2.0),
+                num(t.top_z_m / 2.0),
+                num(t.friction)
+            );
+        }
         for o in &self.objects {
             let name = xml_escape(&o.name);
             let (kind, size) = o.shape.mjcf();

@@ -61,11 +61,11 @@ impl CubeUnderPalm {
         Ok(PhysicsConfig {
             robot: RobotParams::default(),
             scene: SceneSpec {
-                table: TableSpec {
+                table: Some(TableSpec {
                     top_z_m: top,
                     centre_xy_m: [centre.x, centre.y],
                     ..TableSpec::default()
-                },
+                }),
                 objects: vec![cube("cube", self.side_m, [centre.x, centre.y], top)],
             },
             timestep_s: 0.001,

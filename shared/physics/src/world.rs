@@ -76,6 +76,12 @@ pub struct RobotParams {
     pub touch_margin_m: f64,
     /// Mass (and inertia) factor of every link moved by a finger joint.
     pub finger_mass_scale: f64,
+    /// Per finger joint ([`SHADOW_FINGER_JOINTS`] order): factors on `finger_damping`
+    /// and `finger_armature` (a simulated hand whose joints differ from one another).
+    pub finger_damping_scale: [f64; HAND_DOF],
+    pub finger_armature_scale: [f64; HAND_DOF],
+    /// Further mass (and inertia) factors by link name, on top of `finger_mass_scale`.
+    pub link_mass_scale: Vec<(String, f64)>,
 }
 
 impl Default for RobotParams {
@@ -104,6 +110,9 @@ impl Default for RobotParams {
             robot_friction: 1.0,
             touch_margin_m: 0.002,
             finger_mass_scale: 1.0,
+            finger_damping_scale: [1.0; HAND_DOF],
+            finger_armature_scale: [1.0; HAND_DOF],
+            link_mass_scale: Vec::new(),
         }
     }
 }
@@ -190,11 +199,37 @@ pub fn world_mjcf(
         armature: p.finger_armature,
         frictionloss: p.finger_frictionloss,
     };
-    for j in SHADOW_FINGER_JOINTS {
-        dynamics.push((j.to_owned(), finger));
+    for (i, j) in SHADOW_FINGER_JOINTS.iter().enumerate() {
+        let (d, a) = (p.finger_damping_scale[i], p.finger_armature_scale[i]);
+        if !(d.is_finite() && d > 0.0 && a.is_finite() && a > 0.0) {
+            return Err(PhysicsError::Invalid {
+                what: "finger_damping_scale / finger_armature_scale",
+                why: format!("{j}: {d} / {a} (must be > 0)"),
+            });
+        }
+        dynamics.push((
+            (*j).to_owned(),
+            JointDynamics {
+                damping: finger.damping * d,
+                armature: finger.armature * a,
+                ..finger
+            },
+        ));
     }
     let arm_limits = arm_joint_limits(robot)?;
-    let mass_scale = finger_link_mass_scale(robot, p.finger_mass_scale)?;
+    let mut mass_scale = finger_link_mass_scale(robot, p.finger_mass_scale)?;
+    for (link, f) in &p.link_mass_scale {
+        if !(f.is_finite() && *f > 0.0) || robot.link_id(link).is_err() {
+            return Err(PhysicsError::Invalid {
+                what: "link_mass_scale",
+                why: format!("{link}: {f} (must be a link of the robot and > 0)"),
+            });
+        }
+        match mass_scale.iter_mut().find(|(n, _)| n == link) {
+            Some((_, g)) => *g *= f,
+            None => mass_scale.push((link.clone(), *f)),
+        }
+    }
     let mjcf = RobotMjcf {
         robot,
         dynamics,
@@ -632,6 +667,15 @@ impl PhysicsWorld {
             .iter()
             .map(|(n, id)| (n.as_str(), self.body_pose_by_id(*id)))
             .collect()
+    }
+
+    /// The diagonal of the finger joints' inertia (links and armature) at the model's
+    /// reference posture, kg m^2: what a motor loop evaluated between steps needs to keep
+    /// its stiff terms stable.
+    #[must_use]
+    pub fn hand_inertia_kg_m2(&self) -> [f64; HAND_DOF] {
+        let m0 = self.data.model().dof_m0();
+        self.hand.map(|j| m0[j.dof])
     }
 
     /// The driver's position reference, rad (what the servo tracks).

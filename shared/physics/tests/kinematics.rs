@@ -11,7 +11,7 @@ fn config() -> PhysicsConfig {
     PhysicsConfig {
         robot: RobotParams::default(),
         scene: SceneSpec {
-            table: teleop_physics::TableSpec::default(),
+            table: Some(teleop_physics::TableSpec::default()),
             objects: Vec::new(),
         },
         timestep_s: 0.001,

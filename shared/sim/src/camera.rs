@@ -48,8 +48,10 @@ use teleop_render::{
 };
 
 use super::error::SimError;
+use super::geometry::Capsule;
 use super::world::World;
 use teleop_interfaces::joints::SHADOW_FINGER_JOINTS as FINGER_JOINTS;
+use teleop_kinematics::{KinematicState, Robot};
 
 /// Smallest accepted image side, px.
 pub const MIN_IMAGE_SIDE_PX: u32 = 16;
@@ -304,8 +306,72 @@ pub enum Part {
     Arm,
     /// A Shadow hand link (forearm mount, wrist, palm, fingers).
     Hand,
-    /// An object, by index in [`World::objects`].
+    /// An object, by index in the world's list of objects.
     Object(usize),
+    /// The table the objects stand on.
+    Table,
+}
+
+/// An object or fixture of the scene as the cameras draw it.
+#[derive(Debug, Clone, Copy)]
+pub struct SceneObject {
+    pub primitive: Primitive,
+    /// The render shape's pose in the world.
+    pub pose: Isometry3<f64>,
+    pub color: Rgb8,
+    pub part: Part,
+}
+
+/// What the cameras need from a simulated world: the robot and its configuration, and
+/// the environment's shapes with their current poses.
+pub trait CameraScene {
+    /// The robot description (PR2 arm with the Shadow hand).
+    fn scene_robot(&self) -> &Robot;
+    /// The robot's current configuration (ground truth).
+    fn scene_kinematics(&self) -> &KinematicState;
+    /// The finger links as the world's contact model has them (world frame), drawn in
+    /// place of their URDF collision primitives; `None`: the world collides with those
+    /// primitives, so they are drawn as the other links are.
+    fn finger_capsules(&self) -> Option<Vec<Capsule>>;
+    /// The objects and fixtures, posed, into `out` (cleared first).
+    ///
+    /// # Errors
+    /// [`CameraError::Object`] for an object whose geometry is invalid.
+    fn scene_objects(&self, out: &mut Vec<SceneObject>) -> Result<(), CameraError>;
+}
+
+impl CameraScene for World {
+    fn scene_robot(&self) -> &Robot {
+        self.robot()
+    }
+
+    fn scene_kinematics(&self) -> &KinematicState {
+        self.kinematic_state()
+    }
+
+    fn finger_capsules(&self) -> Option<Vec<Capsule>> {
+        Some(self.link_capsules_world(None).collect())
+    }
+
+    fn scene_objects(&self, out: &mut Vec<SceneObject>) -> Result<(), CameraError> {
+        out.clear();
+        for (index, object) in self.objects().iter().enumerate() {
+            let capsule = object.world_capsule()?;
+            let (primitive, ball) = capsule_primitive(&capsule);
+            let pose = if ball {
+                Isometry3::translation(capsule.a.x, capsule.a.y, capsule.a.z)
+            } else {
+                segment_pose(&capsule.a, &capsule.b)
+            };
+            out.push(SceneObject {
+                primitive,
+                pose,
+                color: OBJECT_COLORS[index % OBJECT_COLORS.len()],
+                part: Part::Object(index),
+            });
+        }
+        Ok(())
+    }
 }
 
 /// A shape that follows a robot link.
@@ -335,7 +401,9 @@ pub struct SceneCameras {
     parts: Vec<Part>,
     links: Vec<LinkShape>,
     fingers: Vec<CapsuleShape>,
-    objects: Vec<CapsuleShape>,
+    objects: Vec<ShapeId>,
+    /// The world's objects at the last update (reused).
+    object_buf: Vec<SceneObject>,
     renderer: Renderer,
     frames: [Frame; 2],
 }
@@ -345,7 +413,10 @@ impl SceneCameras {
     ///
     /// # Errors
     /// [`CameraError`] for a bad config or geometry the renderer refuses.
-    pub fn new(world: &World, config: &CameraViewsConfig) -> Result<Self, CameraError> {
+    pub fn new(
+        world: &(impl CameraScene + ?Sized),
+        config: &CameraViewsConfig,
+    ) -> Result<Self, CameraError> {
         let cameras = [config.camera(View::Top)?, config.camera(View::Side)?];
         let channels = Channels {
             grey: false,
@@ -360,6 +431,7 @@ impl SceneCameras {
             links: Vec::new(),
             fingers: Vec::new(),
             objects: Vec::new(),
+            object_buf: Vec::new(),
             renderer: Renderer::new(),
             frames: [Frame::new(channels), Frame::new(channels)],
         };
@@ -401,7 +473,7 @@ impl SceneCameras {
     /// # Errors
     /// [`CameraError`] if a shape's pose is not finite or the world's objects are
     /// invalid.
-    pub fn render(&mut self, world: &World) -> Result<(), CameraError> {
+    pub fn render(&mut self, world: &(impl CameraScene + ?Sized)) -> Result<(), CameraError> {
         self.update(world)?;
         for (camera, frame) in self.cameras.iter().zip(self.frames.iter_mut()) {
             self.renderer.render(&self.scene, camera, frame);
@@ -413,7 +485,11 @@ impl SceneCameras {
     ///
     /// # Errors
     /// As [`SceneCameras::render`].
-    pub fn render_view(&mut self, world: &World, view: View) -> Result<(), CameraError> {
+    pub fn render_view(
+        &mut self,
+        world: &(impl CameraScene + ?Sized),
+        view: View,
+    ) -> Result<(), CameraError> {
         self.update(world)?;
         let i = view.index();
         self.renderer
@@ -449,7 +525,7 @@ impl SceneCameras {
     }
 
     /// (Re)builds the scene from `world`.
-    fn build(&mut self, world: &World) -> Result<(), CameraError> {
+    fn build(&mut self, world: &(impl CameraScene + ?Sized)) -> Result<(), CameraError> {
         self.scene.clear();
         self.parts.clear();
         self.links.clear();
@@ -457,8 +533,10 @@ impl SceneCameras {
         self.objects.clear();
 
         // Robot links from the URDF collision primitives, except the finger capsules
-        // and balls, which come from the contact model below.
-        let robot = world.robot();
+        // and balls where the world's contact model has its own.
+        let robot = world.scene_robot();
+        let kin = world.scene_kinematics();
+        let finger_capsules = world.finger_capsules();
         let finger_dofs: Vec<usize> = FINGER_JOINTS
             .iter()
             .filter_map(|j| robot.dof_index(j).ok())
@@ -484,14 +562,14 @@ impl SceneCameras {
             };
             for shape in body.shapes() {
                 let is_box = matches!(shape.primitive(), teleop_collision::Primitive::Box { .. });
-                if moved_by_finger && !is_box {
+                if moved_by_finger && !is_box && finger_capsules.is_some() {
                     continue;
                 }
                 let Some((primitive, in_shape)) = render_primitive(shape.primitive()) else {
                     continue;
                 };
                 let offset = shape.origin() * in_shape;
-                let pose = robot.link_pose(world.kinematic_state(), link) * offset;
+                let pose = robot.link_pose(kin, link) * offset;
                 let id = self.scene.push_colored(primitive, pose, color)?;
                 self.parts.push(part);
                 self.links.push(LinkShape { id, link, offset });
@@ -499,7 +577,7 @@ impl SceneCameras {
         }
 
         // Finger links: the contact model's capsules.
-        for capsule in world.link_capsules_world(None) {
+        for capsule in finger_capsules.unwrap_or_default() {
             let (primitive, ball) = capsule_primitive(&capsule);
             let id = self.scene.push_colored(
                 primitive,
@@ -510,42 +588,36 @@ impl SceneCameras {
             self.fingers.push(CapsuleShape { id, ball });
         }
 
-        // Objects.
-        for (index, object) in world.objects().iter().enumerate() {
-            let capsule = object.world_capsule()?;
-            let (primitive, ball) = capsule_primitive(&capsule);
-            let id = self.scene.push_colored(
-                primitive,
-                segment_pose(&capsule.a, &capsule.b),
-                OBJECT_COLORS[index % OBJECT_COLORS.len()],
-            )?;
-            self.parts.push(Part::Object(index));
-            self.objects.push(CapsuleShape { id, ball });
+        // Objects and fixtures.
+        world.scene_objects(&mut self.object_buf)?;
+        for o in &self.object_buf {
+            let id = self.scene.push_colored(o.primitive, o.pose, o.color)?;
+            self.parts.push(o.part);
+            self.objects.push(id);
         }
         Ok(())
     }
 
     /// Moves every shape to where `world` has it; rebuilds the scene if the world's
     /// finger capsules or objects are not the ones it was built from.
-    fn update(&mut self, world: &World) -> Result<(), CameraError> {
-        if world.link_capsules_world(None).count() != self.fingers.len()
-            || world.objects().len() != self.objects.len()
-        {
+    fn update(&mut self, world: &(impl CameraScene + ?Sized)) -> Result<(), CameraError> {
+        let fingers = world.finger_capsules().unwrap_or_default();
+        world.scene_objects(&mut self.object_buf)?;
+        if fingers.len() != self.fingers.len() || self.object_buf.len() != self.objects.len() {
             tracing::debug!("camera scene rebuilt: the world's shapes changed");
             return self.build(world);
         }
-        let robot = world.robot();
-        let kin = world.kinematic_state();
+        let robot = world.scene_robot();
+        let kin = world.scene_kinematics();
         for s in &self.links {
             self.scene
                 .set_pose(s.id, robot.link_pose(kin, s.link) * s.offset)?;
         }
-        for (s, capsule) in self.fingers.iter().zip(world.link_capsules_world(None)) {
-            self.scene.set_pose(s.id, capsule_pose(s, &capsule))?;
+        for (s, capsule) in self.fingers.iter().zip(&fingers) {
+            self.scene.set_pose(s.id, capsule_pose(s, capsule))?;
         }
-        for (s, object) in self.objects.iter().zip(world.objects()) {
-            let capsule = object.world_capsule()?;
-            self.scene.set_pose(s.id, capsule_pose(s, &capsule))?;
+        for (id, o) in self.objects.iter().zip(&self.object_buf) {
+            self.scene.set_pose(*id, o.pose)?;
         }
         Ok(())
     }
@@ -558,7 +630,7 @@ fn set_string(s: &mut String, value: &str) {
     }
 }
 
-fn capsule_pose(shape: &CapsuleShape, capsule: &super::geometry::Capsule) -> Isometry3<f64> {
+fn capsule_pose(shape: &CapsuleShape, capsule: &Capsule) -> Isometry3<f64> {
     if shape.ball {
         Isometry3::translation(capsule.a.x, capsule.a.y, capsule.a.z)
     } else {
@@ -570,7 +642,7 @@ fn capsule_pose(shape: &CapsuleShape, capsule: &super::geometry::Capsule) -> Iso
 /// along local z).
 /// The render primitive of a contact capsule (a ball when its segment is shorter than
 /// [`BALL_BELOW_M`]), and whether it is a ball.
-fn capsule_primitive(capsule: &super::geometry::Capsule) -> (Primitive, bool) {
+fn capsule_primitive(capsule: &Capsule) -> (Primitive, bool) {
     let length = (capsule.b - capsule.a).norm();
     if length < BALL_BELOW_M {
         (Primitive::ball(capsule.radius_m), true)
@@ -641,7 +713,7 @@ mod tests {
                 Some(Part::Hand) => hand += 1,
                 Some(Part::Arm) => arm += 1,
                 Some(Part::Object(_)) => object += 1,
-                None => {}
+                Some(Part::Table) | None => {}
             }
         }
         (hand, arm, object)

@@ -30,4 +30,7 @@ pub enum SimError {
         /// What is wrong.
         reason: &'static str,
     },
+    /// The physical world (MuJoCo) refused a model or a command, or became unstable.
+    #[error("physics: {0}")]
+    Physics(#[from] teleop_physics::PhysicsError),
 }

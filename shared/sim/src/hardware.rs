@@ -1,40 +1,105 @@
-//! [`ArmHardware`] / [`HandHardware`] over a shared in-process [`World`].
+//! [`ArmHardware`] / [`HandHardware`] over a shared in-process simulated world: the
+//! joint-space [`World`] or the physical [`MujocoWorld`](crate::MujocoWorld), both seen
+//! through [`RobotWorld`].
 //!
 //! The handles only move data: `read` returns the state the world measured at its last
-//! step, `write` stores a command that the next [`World::step`] applies. Whoever owns
-//! the loop (a test, or a single-process simulator) steps the world; a controller holding
-//! a handle cannot tell it from a real driver.
+//! step, `write` stores a command that the next step applies. Whoever owns the loop (a
+//! test, or a single-process simulator) steps the world; a controller holding a handle
+//! cannot tell it from a real driver.
 
 use std::sync::{Arc, Mutex, MutexGuard};
 
+use nalgebra::{Isometry3, SVector};
+
+use super::camera::CameraScene;
+use super::error::SimError;
 use super::world::World;
 use teleop_hardware::{
     ArmCommand, ArmHardware, ArmState, HandCommand, HandHardware, HandState, HardwareError,
 };
 
-/// A world shared between the stepping loop and the hardware handles.
-pub type SharedWorld = Arc<Mutex<World>>;
+/// What the simulator process needs of a robot-site world: time, stepping, the drivers'
+/// states and commands, ground truth of the objects, and the cameras' scene.
+pub trait RobotWorld: CameraScene + Send + std::fmt::Debug {
+    /// Simulation time, s.
+    fn time_s(&self) -> f64;
+    /// Advances by `duration_s` in the world's fixed steps (durations accumulate).
+    ///
+    /// # Errors
+    /// [`SimError::Physics`] when the physics became unstable.
+    fn advance(&mut self, duration_s: f64) -> Result<(), SimError>;
+    /// The arm state as its driver reports it.
+    fn arm_state(&self) -> ArmState<7>;
+    /// The hand state as its driver reports it.
+    fn hand_state(&self) -> HandState;
+    /// Stores an arm velocity command (finite: the handles check), applied from the next
+    /// step.
+    fn command_arm(&mut self, velocity_rad_s: &SVector<f64, 7>);
+    /// Stores a hand command, applied from the next step until replaced.
+    fn command_hand(&mut self, command: &HandCommand);
+    /// Ground truth: every object's name and world pose.
+    fn object_poses(&self) -> Vec<(String, Isometry3<f64>)>;
+}
 
-fn lock(world: &SharedWorld) -> Result<MutexGuard<'_, World>, HardwareError> {
+impl RobotWorld for World {
+    fn time_s(&self) -> f64 {
+        World::time_s(self)
+    }
+    fn advance(&mut self, duration_s: f64) -> Result<(), SimError> {
+        self.step(duration_s);
+        Ok(())
+    }
+    fn arm_state(&self) -> ArmState<7> {
+        World::arm_state(self)
+    }
+    fn hand_state(&self) -> HandState {
+        World::hand_state(self)
+    }
+    fn command_arm(&mut self, velocity_rad_s: &SVector<f64, 7>) {
+        World::command_arm(self, velocity_rad_s);
+    }
+    fn command_hand(&mut self, command: &HandCommand) {
+        World::command_hand(self, command);
+    }
+    fn object_poses(&self) -> Vec<(String, Isometry3<f64>)> {
+        self.objects()
+            .iter()
+            .map(|o| (o.name.clone(), o.pose))
+            .collect()
+    }
+}
+
+/// A world shared between the stepping loop and the hardware handles.
+pub type SharedWorld<W = World> = Arc<Mutex<W>>;
+
+fn lock<W: ?Sized>(world: &Arc<Mutex<W>>) -> Result<MutexGuard<'_, W>, HardwareError> {
     world
         .lock()
         .map_err(|_| HardwareError::Fault("simulated world lock poisoned".to_owned()))
 }
 
 /// The simulated arm seen through [`ArmHardware`].
-#[derive(Debug, Clone)]
-pub struct SimArm {
-    world: SharedWorld,
+#[derive(Debug)]
+pub struct SimArm<W: ?Sized = World> {
+    world: Arc<Mutex<W>>,
 }
 
-impl SimArm {
+impl<W: ?Sized> Clone for SimArm<W> {
+    fn clone(&self) -> Self {
+        Self {
+            world: self.world.clone(),
+        }
+    }
+}
+
+impl<W: ?Sized> SimArm<W> {
     /// A handle on `world`'s arm.
-    pub fn new(world: SharedWorld) -> Self {
+    pub fn new(world: Arc<Mutex<W>>) -> Self {
         Self { world }
     }
 }
 
-impl ArmHardware<7> for SimArm {
+impl<W: RobotWorld + ?Sized> ArmHardware<7> for SimArm<W> {
     fn read(&mut self, _now_s: f64) -> Result<ArmState<7>, HardwareError> {
         Ok(lock(&self.world)?.arm_state())
     }
@@ -53,19 +118,27 @@ impl ArmHardware<7> for SimArm {
 }
 
 /// The simulated hand seen through [`HandHardware`].
-#[derive(Debug, Clone)]
-pub struct SimHand {
-    world: SharedWorld,
+#[derive(Debug)]
+pub struct SimHand<W: ?Sized = World> {
+    world: Arc<Mutex<W>>,
 }
 
-impl SimHand {
+impl<W: ?Sized> Clone for SimHand<W> {
+    fn clone(&self) -> Self {
+        Self {
+            world: self.world.clone(),
+        }
+    }
+}
+
+impl<W: ?Sized> SimHand<W> {
     /// A handle on `world`'s hand.
-    pub fn new(world: SharedWorld) -> Self {
+    pub fn new(world: Arc<Mutex<W>>) -> Self {
         Self { world }
     }
 }
 
-impl HandHardware for SimHand {
+impl<W: RobotWorld + ?Sized> HandHardware for SimHand<W> {
     fn read(&mut self, _now_s: f64) -> Result<HandState, HardwareError> {
         Ok(lock(&self.world)?.hand_state())
     }
@@ -82,7 +155,7 @@ impl HandHardware for SimHand {
 }
 
 /// Wraps a world for sharing and returns the two hardware handles with it.
-pub fn share(world: World) -> (SharedWorld, SimArm, SimHand) {
+pub fn share<W>(world: W) -> (SharedWorld<W>, SimArm<W>, SimHand<W>) {
     let shared = Arc::new(Mutex::new(world));
     (
         shared.clone(),

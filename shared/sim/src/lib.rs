@@ -101,20 +101,24 @@ pub mod camera;
 pub mod config;
 pub mod error;
 pub mod geometry;
+mod hand_loop;
 pub mod hardware;
+mod measure;
 pub mod objects;
 pub mod operator;
 pub mod operator_site;
+pub mod physical;
 mod scenarios;
 mod world;
 
-pub use camera::{CameraError, CameraViewsConfig, SceneCameras, View};
+pub use camera::{CameraError, CameraScene, CameraViewsConfig, SceneCameras, SceneObject, View};
 pub use config::{
     ArmSimConfig, ContactConfig, HandSimConfig, NoiseConfig, PerturbationConfig, WorldConfig,
 };
 pub use error::SimError;
-pub use hardware::{SharedWorld, SimArm, SimHand, share};
+pub use hardware::{RobotWorld, SharedWorld, SimArm, SimHand, share};
 pub use objects::{ExternalLoad, LoadTarget, Object, ObjectShape};
+pub use physical::{MujocoWorld, MujocoWorldConfig, PickSceneConfig};
 pub use scenarios::{CupGraspConfig, TouchingTaskConfig, WORKING_POSTURE_RAD};
 pub use teleop_hardware::velocity_driver::{ArmJointLimits, ArmSim};
 pub use world::{ContactInfo, Perturbation, World};

@@ -3,7 +3,6 @@
 use nalgebra::{Isometry3, Matrix6xX, Point3, SVector, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rand_distr::StandardNormal;
 use teleop_hardware::{ArmState, HandCommand, HandState};
 use teleop_interfaces::joints::{
     FINGERTIPS, PR2_ARM_JOINTS as ARM_JOINTS, SHADOW_FINGER_JOINTS as FINGER_JOINTS,
@@ -13,6 +12,8 @@ use teleop_kinematics::{GravityModel, KinematicState, LinkId, Robot, robots};
 use super::config::WorldConfig;
 use super::error::SimError;
 use super::geometry::{Capsule, capsule_distance, penetration};
+use super::hand_loop::{MotorLaw, motor_torques};
+use super::measure::{TrueState, at_rest, measured};
 use super::objects::{ExternalLoad, LoadTarget, Object, ResolvedTarget};
 use teleop_hardware::velocity_driver::{ArmJointLimits, ArmSim};
 
@@ -76,8 +77,11 @@ pub struct Perturbation {
 }
 
 impl Perturbation {
-    fn draw(config: &WorldConfig, robot: &Robot, dof_hand: &[Option<usize>]) -> Self {
-        let p = &config.perturbation;
+    pub(crate) fn draw(
+        p: &crate::PerturbationConfig,
+        robot: &Robot,
+        dof_hand: &[Option<usize>],
+    ) -> Self {
         let mut rng = ChaCha8Rng::seed_from_u64(p.seed);
         let mut factor = |f: f64| -> f64 {
             if f > 0.0 {
@@ -282,7 +286,7 @@ impl World {
         }
 
         // The simulated robot's own parameters: nominal times a seeded draw.
-        let perturbation = Perturbation::draw(&config, &robot, &dof_hand);
+        let perturbation = Perturbation::draw(&config.perturbation, &robot, &dof_hand);
 
         // Diagonal joint inertia at the straight-finger posture (the largest it gets).
         let mut kin = robot.new_state();
@@ -364,18 +368,8 @@ impl World {
             steps: 0,
             target_time_s: 0.0,
             rng,
-            measured_arm: ArmState {
-                time_s: 0.0,
-                position_rad: SVector::zeros(),
-                velocity_rad_s: SVector::zeros(),
-            },
-            measured_hand: HandState {
-                time_s: 0.0,
-                position_rad: SVector::zeros(),
-                velocity_rad_s: SVector::zeros(),
-                effort_nm: SVector::zeros(),
-                fingertip_force_n: [0.0; 5],
-            },
+            measured_arm: at_rest().0,
+            measured_hand: at_rest().1,
             config,
         };
         world.refresh_kinematics();
@@ -556,56 +550,22 @@ impl World {
         force -= v.component_mul(&self.damping);
 
         // Motors.
-        let max = cfg.hand.max_effort_nm;
-        let gain = self.perturbation.motor_gain_scale;
-        let effort = match self.hand_command {
-            HandCommand::Effort(tau) => SVector::from_fn(|i, _| {
-                let t = tau[i];
-                if t.is_finite() {
-                    (t * gain[i]).clamp(-max, max)
-                } else {
-                    0.0
-                }
-            }),
-            HandCommand::Position(target) => SVector::from_fn(|i, _| {
-                let goal = if target[i].is_finite() {
-                    target[i].clamp(self.hand_lower[i], self.hand_upper[i])
-                } else {
-                    q[i]
-                };
-                let raw =
-                    cfg.hand.servo_kp_nm_rad * (goal - q[i]) - cfg.hand.servo_kd_nm_s_rad * v[i];
-                if raw.abs() < max {
-                    stiff[i] += cfg.hand.servo_kp_nm_rad;
-                    damp[i] += cfg.hand.servo_kd_nm_s_rad;
-                    raw
-                } else {
-                    raw.signum() * max
-                }
-            }),
-            // The hardware's own loop evaluates the impedance at every substep with the
-            // newest state; its stiff terms are integrated implicitly while unsaturated.
-            HandCommand::Impedance(z) => SVector::from_fn(|i, _| {
-                let set = z.position_rad[i].clamp(self.hand_lower[i], self.hand_upper[i]);
-                let (k, c) = (
-                    z.stiffness_nm_rad[i].max(0.0),
-                    z.damping_nm_s_rad[i].max(0.0),
-                );
-                // The motor's torque constant errs as with effort commands.
-                let raw = gain[i]
-                    * (z.feedforward_nm[i] + k * (set - q[i]) + c * (z.velocity_rad_s[i] - v[i]));
-                let limit = z.max_effort_nm[i].abs().min(max);
-                if !raw.is_finite() {
-                    0.0
-                } else if raw.abs() < limit {
-                    stiff[i] += gain[i] * k;
-                    damp[i] += gain[i] * c;
-                    raw
-                } else {
-                    raw.signum() * limit
-                }
-            }),
-        };
+        let motors = motor_torques(
+            &self.hand_command,
+            &q,
+            &v,
+            &MotorLaw {
+                lower: &self.hand_lower,
+                upper: &self.hand_upper,
+                gain: &self.perturbation.motor_gain_scale,
+                max_nm: cfg.hand.max_effort_nm,
+                servo_kp_nm_rad: cfg.hand.servo_kp_nm_rad,
+                servo_kd_nm_s_rad: cfg.hand.servo_kd_nm_s_rad,
+            },
+        );
+        stiff += motors.stiffness;
+        damp += motors.damping;
+        let effort = motors.effort;
         self.hand_effort = effort;
         force += effort;
 
@@ -746,43 +706,17 @@ impl World {
     }
 
     fn measure(&mut self) {
-        let noise = self.config.noise.clone();
-        let t = self.time_s();
-        let mut gauss = |std: f64| -> f64 {
-            if std > 0.0 {
-                std * self.rng.sample::<f64, _>(StandardNormal)
-            } else {
-                0.0
-            }
+        let truth = TrueState {
+            time_s: self.time_s(),
+            arm_q: *self.arm.position_rad(),
+            arm_v: *self.arm.velocity_rad_s(),
+            hand_q: self.hand_q,
+            hand_v: self.hand_qd,
+            hand_effort: self.hand_effort,
+            tips: self.tip_force,
         };
-        let mut arm_q = *self.arm.position_rad();
-        let mut arm_v = *self.arm.velocity_rad_s();
-        for i in 0..7 {
-            arm_q[i] += gauss(noise.joint_position_std_rad);
-            arm_v[i] += gauss(noise.joint_velocity_std_rad_s);
-        }
-        let mut hand_q = self.hand_q;
-        let mut hand_v = self.hand_qd;
-        for i in 0..17 {
-            hand_q[i] += gauss(noise.joint_position_std_rad);
-            hand_v[i] += gauss(noise.joint_velocity_std_rad_s);
-        }
-        let mut tips = self.tip_force;
-        for f in &mut tips {
-            *f = (*f + gauss(noise.fingertip_force_std_n)).max(0.0);
-        }
-        self.measured_arm = ArmState {
-            time_s: t,
-            position_rad: arm_q,
-            velocity_rad_s: arm_v,
-        };
-        self.measured_hand = HandState {
-            time_s: t,
-            position_rad: hand_q,
-            velocity_rad_s: hand_v,
-            effort_nm: self.hand_effort,
-            fingertip_force_n: tips,
-        };
+        (self.measured_arm, self.measured_hand) =
+            measured(&truth, &self.config.noise, &mut self.rng);
     }
 
     // ----- what the hardware reads ---------------------------------------------------

@@ -81,6 +81,32 @@ pub struct LaunchArgs {
     /// `scheduling.realtime_priority` in the node configs).
     #[arg(long)]
     pub no_realtime: bool,
+    /// Override a field of one node's config, NODE.KEY=VALUE (repeatable): passed to
+    /// that node as `--set KEY=VALUE`, e.g. `remote_sim.engine=mujoco` (the robots in
+    /// the MuJoCo world) or `remote_sim.mujoco.perturbation.seed=7`.
+    #[arg(long = "set", value_name = "NODE.KEY=VALUE")]
+    pub set: Vec<String>,
+}
+
+/// The `--set` overrides per node: `(node, KEY=VALUE)`.
+///
+/// # Errors
+/// An override without a node name, or naming a node the system does not have.
+fn node_overrides(sets: &[String]) -> anyhow::Result<Vec<(&'static str, String)>> {
+    sets.iter()
+        .map(|s| {
+            let (node, rest) = s
+                .split_once('.')
+                .with_context(|| format!("--set {s}: expected NODE.KEY=VALUE"))?;
+            let spec = NODES.iter().find(|n| n.name == node).with_context(|| {
+                format!(
+                    "--set {s}: no node {node:?}; the nodes are: {}",
+                    NODES.iter().map(|n| n.name).collect::<Vec<_>>().join(", ")
+                )
+            })?;
+            Ok((spec.name, rest.to_owned()))
+        })
+        .collect()
 }
 
 /// This run's directory for the configs the launcher writes.
@@ -308,6 +334,7 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
     let status = bus.subscriber(&topics::NODE_STATUS).await?;
     let mut log = StatusLog::default();
 
+    let overrides = node_overrides(&args.set)?;
     ensure_onnx_runtime(&args).await?;
     let sim_config = local_sim_config(&args)?;
     let (display_config, display_listen) = display_config(&args)?;
@@ -357,6 +384,9 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         } else if let Some(dir) = &args.config_dir {
             cmd.arg("--config")
                 .arg(dir.join(format!("{}.toml", spec.name)));
+        }
+        for (_, set) in overrides.iter().filter(|(n, _)| *n == spec.name) {
+            cmd.arg("--set").arg(set);
         }
         cmd.args(zenoh.to_args());
         if args.no_realtime {
@@ -419,7 +449,15 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         }
     };
     let run_once = sim_config.is_some();
+    // CPU and peak memory of every node's process, for the report.
+    let mut resources = crate::proc_stat::ResourceSampler::new(
+        children
+            .iter()
+            .filter_map(|(spec, c)| c.id().map(|pid| (spec.name.to_owned(), pid))),
+    );
+    let resources_ref = &mut resources;
     let collect = async {
+        let mut sampled = std::time::Instant::now();
         // Simulated time, as the task's.
         let mut done_since: Option<f64> = None;
         loop {
@@ -432,6 +470,10 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
                 log.record(r.msg);
             }
             recorder.poll();
+            if sampled.elapsed() >= Duration::from_secs(1) {
+                resources_ref.sample();
+                sampled = std::time::Instant::now();
+            }
             if done_since.is_some_and(|t| bus.now_s() - t > 1.0) {
                 return;
             }
@@ -455,6 +497,7 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         () = collect => None,
     };
     log.drain(&status);
+    resources.sample();
     // Who publishes what, as the running nodes announce it, against the topic table
     // (which the sites' routers enforce across machines).
     let publishers = match bus.graph(Duration::from_millis(500)).await {
@@ -465,6 +508,7 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
     print_summary(&outcomes);
     println!("{publishers}");
     let mut report = recorder.finish(bus.now_s(), &log.finals);
+    report.resources = resources.summary();
     if let Some(task) = pacer {
         task.abort();
         // The mean rate: simulated over wall seconds of the run.
@@ -698,5 +742,29 @@ async fn wait_any(children: &mut [(&'static NodeSpec, Child)]) -> (&'static str,
             }
         }
         tokio::time::sleep(Duration::from_millis(200)).await;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn overrides_go_to_the_node_they_name() {
+        let out = node_overrides(&[
+            "remote_sim.engine=mujoco".into(),
+            "remote_sim.mujoco.perturbation.seed=7".into(),
+        ])
+        .expect("valid");
+        assert_eq!(
+            out,
+            [
+                ("remote_sim", "engine=mujoco".to_owned()),
+                ("remote_sim", "mujoco.perturbation.seed=7".to_owned())
+            ]
+        );
+        let err = node_overrides(&["remote_simm.engine=mujoco".into()]).expect_err("no node");
+        assert!(err.to_string().contains("remote_simm"), "{err}");
+        assert!(node_overrides(&["engine".into()]).is_err());
     }
 }

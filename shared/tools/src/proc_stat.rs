@@ -44,6 +44,118 @@ pub fn process_ticks(pid: u32) -> Result<u64> {
     parse_process(&stat).with_context(|| format!("/proc/{pid}/stat: no utime and stime"))
 }
 
+/// Peak resident set size of process `pid` so far (`VmHWM` of `/proc/<pid>/status`),
+/// bytes.
+///
+/// # Errors
+/// The file unreadable (the process ended) or without `VmHWM`.
+pub fn process_peak_rss_bytes(pid: u32) -> Result<u64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status"))
+        .with_context(|| format!("reading /proc/{pid}/status (has the process ended?)"))?;
+    parse_peak_rss(&status).with_context(|| format!("/proc/{pid}/status: no VmHWM"))
+}
+
+fn parse_peak_rss(text: &str) -> Option<u64> {
+    let line = text.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let mut parts = line.split_whitespace().skip(1);
+    let kb: u64 = parts.next()?.parse().ok()?;
+    (parts.next()? == "kB").then_some(kb * 1024)
+}
+
+/// CPU time and peak memory of a set of processes over a run: sampled now and then
+/// (each sample keeps the newest reading of a process still alive), so the figures
+/// cover the run up to the last sample.
+#[derive(Debug, Clone)]
+pub struct ResourceSampler {
+    start: std::time::Instant,
+    procs: Vec<Sampled>,
+    last_s: f64,
+}
+
+/// One process's readings so far.
+#[derive(Debug, Clone)]
+struct Sampled {
+    name: String,
+    pid: u32,
+    first_ticks: Option<u64>,
+    newest_ticks: Option<u64>,
+    peak_rss_bytes: u64,
+}
+
+/// One process's use over the sampled run.
+#[derive(Debug, Clone, serde::Serialize, PartialEq)]
+pub struct ProcessUse {
+    /// CPU time over the sampled wall time: 1.0 = one core busy throughout.
+    pub cpu_cores: f64,
+    /// Peak resident memory, MB (10^6 bytes).
+    pub peak_rss_mb: f64,
+}
+
+impl ResourceSampler {
+    /// Starts sampling `procs` (name, pid): the first sample now.
+    pub fn new(procs: impl IntoIterator<Item = (String, u32)>) -> Self {
+        let mut this = Self {
+            start: std::time::Instant::now(),
+            procs: procs
+                .into_iter()
+                .map(|(name, pid)| Sampled {
+                    name,
+                    pid,
+                    first_ticks: None,
+                    newest_ticks: None,
+                    peak_rss_bytes: 0,
+                })
+                .collect(),
+            last_s: 0.0,
+        };
+        this.sample();
+        this
+    }
+
+    /// Reads every process still alive.
+    pub fn sample(&mut self) {
+        for p in &mut self.procs {
+            if let Ok(t) = process_ticks(p.pid) {
+                p.first_ticks.get_or_insert(t);
+                p.newest_ticks = Some(t);
+            }
+            if let Ok(r) = process_peak_rss_bytes(p.pid) {
+                p.peak_rss_bytes = p.peak_rss_bytes.max(r);
+            }
+        }
+        self.last_s = self.start.elapsed().as_secs_f64();
+    }
+
+    /// Each process's use from the first to the last sample, by name.
+    pub fn summary(&self) -> std::collections::BTreeMap<String, ProcessUse> {
+        let tck = clock_ticks_per_s();
+        self.procs
+            .iter()
+            .map(|p| {
+                let ticks = match (p.first_ticks, p.newest_ticks) {
+                    (Some(a), Some(b)) => b.saturating_sub(a),
+                    _ => 0,
+                };
+                #[allow(clippy::cast_precision_loss)]
+                let cpu_cores = if self.last_s > 0.0 {
+                    ticks as f64 / tck / self.last_s
+                } else {
+                    0.0
+                };
+                #[allow(clippy::cast_precision_loss)]
+                let peak_rss_mb = p.peak_rss_bytes as f64 / 1e6;
+                (
+                    p.name.clone(),
+                    ProcessUse {
+                        cpu_cores,
+                        peak_rss_mb,
+                    },
+                )
+            })
+            .collect()
+    }
+}
+
 /// Clock ticks per second of `/proc`'s CPU times (`getconf CLK_TCK`; 100, Linux's
 /// USER_HZ on every architecture it runs on, if that fails).
 pub fn clock_ticks_per_s() -> f64 {
@@ -96,6 +208,31 @@ fn parse_process(text: &str) -> Option<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn peak_memory_is_read_and_a_busy_process_uses_cpu() {
+        assert_eq!(
+            parse_peak_rss("Name:\tx\nVmHWM:\t  2048 kB\nVmRSS:\t 1 kB\n"),
+            Some(2 * 1024 * 1024)
+        );
+        assert_eq!(parse_peak_rss("VmHWM:\t2048 MB\n"), None);
+        assert_eq!(parse_peak_rss("Name: x\n"), None);
+        let me = std::process::id();
+        let mut s = ResourceSampler::new([("me".to_owned(), me), ("gone".to_owned(), u32::MAX)]);
+        // Busy for 0.3 s on this thread.
+        let t0 = std::time::Instant::now();
+        let mut x = 0u64;
+        while t0.elapsed().as_secs_f64() < 0.3 {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1);
+        }
+        std::hint::black_box(x);
+        s.sample();
+        let out = s.summary();
+        assert!(out["me"].cpu_cores > 0.3, "{:?}", out["me"]);
+        assert!(out["me"].peak_rss_mb > 1.0, "{:?}", out["me"]);
+        assert_eq!(out["gone"].cpu_cores, 0.0);
+        assert_eq!(out["gone"].peak_rss_mb, 0.0);
+    }
 
     #[test]
     fn proc_files_are_read_and_odd_ones_refused() {

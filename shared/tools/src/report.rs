@@ -160,6 +160,10 @@ pub struct RunReport {
     /// what each asked for and got (0 = refused, normal time sharing), from their
     /// final status.
     pub realtime_scheduling: BTreeMap<String, RealtimeScheduling>,
+    /// CPU (cores: 1.0 = one core busy throughout) and peak resident memory of each
+    /// node's process over the run, sampled from `/proc` by the launcher (empty when
+    /// the report was recorded from outside, `teleop report`).
+    pub resources: BTreeMap<String, crate::proc_stat::ProcessUse>,
     /// The local-site goals judged on this run ([`RunReport::judge_goals`]).
     pub goals: Vec<GoalCheck>,
     /// Time series for the plots: (t, camera position error m).
@@ -905,6 +909,20 @@ impl RunReport {
                 })
                 .collect();
             let _ = writeln!(s, "  {who}: {}", stages.join(", "));
+        }
+        if !self.resources.is_empty() {
+            let cpu: f64 = self.resources.values().map(|u| u.cpu_cores).sum();
+            let rss: f64 = self.resources.values().map(|u| u.peak_rss_mb).sum();
+            let nodes: Vec<String> = self
+                .resources
+                .iter()
+                .map(|(n, u)| format!("{n} {:.3} / {:.0}", u.cpu_cores, u.peak_rss_mb))
+                .collect();
+            let _ = writeln!(
+                s,
+                "resources (cores / peak MB, from /proc): all nodes {cpu:.2} cores, {rss:.0} MB (sum of peaks); {}",
+                nodes.join(", ")
+            );
         }
         if !self.realtime_scheduling.is_empty() {
             let nodes: Vec<String> = self

@@ -27,6 +27,7 @@ pub async fn run(args: RouterArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         zenoh: zenoh.clone(),
         duration_s: args.duration_s,
         realtime_priority: None,
+        set: Vec::new(),
     };
     let Some(cfg) = node_args.load::<RouterConfig>()? else {
         return Ok(());

@@ -150,6 +150,11 @@ fn the_display_page_updates_in_a_real_browser() {
                 "--no-report-files",
                 "--display",
                 &addr,
+                // The touching scene: its mouse is a fixture in the operator's path, so
+                // the fingertips press on it (the pick scene's objects stand aside until
+                // an operator goes for them).
+                "--set",
+                "remote_sim.scene=touching",
             ])
             .stdout(Stdio::null())
             .spawn()

@@ -416,6 +416,19 @@ fn task_meets_the_goals(
             .into();
         assert_eq!(realtime, &expected, "{task}");
     }
+    // Every node's CPU and peak memory, sampled from /proc by the launcher.
+    let resources = json["resources"].as_object().expect("resources");
+    assert_eq!(
+        resources.len(),
+        teleop_interfaces::nodes::NODES.len(),
+        "{task}: {resources:?}"
+    );
+    for (node, u) in resources {
+        let cpu = u["cpu_cores"].as_f64().unwrap_or(-1.0);
+        let rss = u["peak_rss_mb"].as_f64().unwrap_or(-1.0);
+        assert!(cpu > 0.0 && cpu < 2.5, "{task}: {node} at {cpu} cores");
+        assert!(rss > 1.0, "{task}: {node} peak {rss} MB");
+    }
     // The PR2 followed the operator while clutched.
     assert_eq!(json["clutch_engagements"], 1, "{task}: {json}");
     assert!(

@@ -74,7 +74,35 @@ fn micros_as_ms(r: &Value, group: &str, key: &str) -> Option<f64> {
     r[group][key].as_f64().map(|us| us / 1000.0)
 }
 
+fn resources_sum(r: &Value, field: &str) -> Option<f64> {
+    let nodes = r["resources"].as_object()?;
+    if nodes.is_empty() {
+        return None;
+    }
+    nodes.values().map(|u| u[field].as_f64()).sum()
+}
+
+fn node_resource(r: &Value, node: &str, field: &str) -> Option<f64> {
+    r["resources"][node][field].as_f64()
+}
+
 const FIGURES: &[Figure] = &[
+    Figure {
+        name: "CPU of all nodes, cores",
+        get: |r| resources_sum(r, "cpu_cores"),
+    },
+    Figure {
+        name: "peak memory of all nodes (sum), MB",
+        get: |r| resources_sum(r, "peak_rss_mb"),
+    },
+    Figure {
+        name: "CPU of remote_sim, cores",
+        get: |r| node_resource(r, "remote_sim", "cpu_cores"),
+    },
+    Figure {
+        name: "peak memory of remote_sim, MB",
+        get: |r| node_resource(r, "remote_sim", "peak_rss_mb"),
+    },
     Figure {
         name: "depth frame on the bus -> finger targets p50, ms",
         get: |r| stage(r, "depth frame on the bus -> finger targets", "p50_ms"),

@@ -41,8 +41,10 @@ use nix::unistd::Pid;
 use serde::Serialize;
 use teleop_interfaces::nodes::NODES;
 
-// /proc CPU times, shared with the `teleop` binary (the crate has no library).
+// /proc CPU times, shared with the `teleop` binary (the crate has no library); the
+// launcher's resource sampler is not used here.
 #[path = "../proc_stat.rs"]
+#[allow(dead_code)]
 mod proc_stat;
 
 /// The recorder's overhead at the full system rate (CPU, memory, MB/s written, drops),
