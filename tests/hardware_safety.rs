@@ -15,7 +15,7 @@ use teleop_hardware::{ArmCommand, HandCommand, wire};
 use teleop_interfaces::joints::PR2_ARM_JOINTS;
 use teleop_interfaces::topics;
 use teleop_msgs::JointState;
-use teleop_remote_site::sim_node::{self, Engine, SceneKind, SimNodeConfig, SimSafetyConfig};
+use teleop_remote_site::sim_node::{self, SimNodeConfig, SimSafetyConfig};
 use teleop_system_tests::{free_port, isolated_pair};
 
 /// Publishes `cmd` at 100 Hz for `duration` while collecting arm and hand states.
@@ -70,11 +70,8 @@ fn velocities(states: &[Received<JointState>]) -> Vec<(SVector<f64, 7>, SVector<
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn raw_over_limit_commands_are_refused_or_limited_and_counted() {
     let (hub, spoke) = isolated_pair(25, free_port().unwrap());
-    // The physical arm (MuJoCo), whose measured motion is what a real arm's would be.
     let sim = SimNodeConfig {
         bus: hub,
-        engine: Engine::Mujoco,
-        scene: SceneKind::Pick,
         ..Default::default()
     };
     let sim_task = tokio::spawn(sim_node::run(sim, Some(Duration::from_secs(9))));

@@ -7,7 +7,7 @@
 #![allow(clippy::unwrap_used)]
 
 use teleop_control::hand::{HandControllerConfig, HandMode, PerJoint};
-use teleop_system_tests::scenarios::{TouchSummary, TouchingRun, touching_trials};
+use teleop_system_tests::scenarios::{SimEngine, TouchSummary, TouchingRun, touching_trials};
 
 fn summary(mode: HandMode, forgetting_per_s: Option<f64>) -> TouchSummary {
     let mut cfg = HandControllerConfig {
@@ -60,4 +60,50 @@ fn adaptive_control_peaks_at_most_half_the_position_mode_force() {
     assert!(ada.mean_force_n < pos.mean_force_n);
     // The law as printed is gentler than position control too, but less so.
     assert!(printed.max_force_n < pos.max_force_n && printed.max_force_n >= ada.max_force_n);
+}
+
+/// The same touching task in MuJoCo (the mouse's sphere welded in place, the robot with
+/// MuJoCo's model mismatch): printed beside the joint-space figures
+/// (`cargo test --release --workspace --test scenario_touching -- --nocapture`).
+#[test]
+fn in_mujoco_the_touching_task_compares() {
+    let run = TouchingRun {
+        engine: SimEngine::Mujoco,
+        ..TouchingRun::default()
+    };
+    let mut out = Vec::new();
+    for mode in [
+        HandMode::Position,
+        HandMode::FixedImpedance,
+        HandMode::Adaptive,
+    ] {
+        let cfg = HandControllerConfig {
+            mode,
+            ..HandControllerConfig::default()
+        };
+        let s = touching_trials(&run, &cfg, 10).unwrap();
+        println!(
+            "MuJoCo {:24} max {:6.2} N, mean {:6.2} N, contact-point spread {:.2} mm, touched {}/10",
+            format!("{mode:?}"),
+            s.max_force_n,
+            s.mean_force_n,
+            s.contact_spread_m * 1e3,
+            s.touched
+        );
+        out.push(s);
+    }
+    let (pos, fixed, ada) = (out[0], out[1], out[2]);
+    println!(
+        "MuJoCo adaptive / position: max {:.2}x, mean {:.2}x",
+        ada.max_force_n / pos.max_force_n,
+        ada.mean_force_n / pos.mean_force_n
+    );
+    // What holds in MuJoCo as in the joint-space world: every trial touches, and
+    // adaptive is the gentlest of the three in peak and mean. (The 0.5x goal of Fig. 8.7
+    // is not met in MuJoCo: 0.61x on 2026-12-06, docs/remote-site.md.)
+    for s in &out {
+        assert_eq!(s.touched, 10, "every trial touches the surface: {s:?}");
+    }
+    assert!(ada.max_force_n < fixed.max_force_n && fixed.max_force_n < pos.max_force_n);
+    assert!(ada.mean_force_n < fixed.mean_force_n && fixed.mean_force_n < pos.mean_force_n);
 }

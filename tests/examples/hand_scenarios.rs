@@ -6,6 +6,9 @@
 //! * `thumb_load.png` / `.csv`: the screw-pouring stand-in (-0.3 N m on THJ4 from 3 s,
 //!   ramped over 2 s) under fixed-gain and adaptive control: THJ4 error and effort.
 //!
+//! Both in the joint-space world, and again in MuJoCo (`*_mujoco.png` / `.csv`: the cup
+//! welded in place, the load MuJoCo's applied torque).
+//!
 //! `cargo run --release -p teleop-system-tests --example hand_scenarios`
 
 use std::fmt::Write as _;
@@ -16,7 +19,7 @@ use plotters::prelude::*;
 use teleop_control::hand::{HandControllerConfig, HandMode};
 use teleop_hardware::FINGERTIPS;
 use teleop_sim::{ExternalLoad, LoadTarget};
-use teleop_system_tests::scenarios::{GraspRun, GraspSample, grasp_run};
+use teleop_system_tests::scenarios::{GraspRun, GraspSample, SimEngine, grasp_run};
 
 /// Control modes: the CSV's name and the plot's title.
 const MODES: [(HandMode, &str, &str); 3] = [
@@ -47,7 +50,20 @@ fn main() -> anyhow::Result<()> {
         .nth(1)
         .map_or_else(|| PathBuf::from("docs/img"), PathBuf::from);
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    figures(&dir, SimEngine::JointSpace, "")?;
+    figures(&dir, SimEngine::Mujoco, "_mujoco")
+}
 
+/// The two figures of `engine`'s world, their files named with `suffix`.
+fn figures(dir: &Path, engine: SimEngine, suffix: &str) -> anyhow::Result<()> {
+    let world = match engine {
+        SimEngine::JointSpace => "joint-space world",
+        SimEngine::Mujoco => "MuJoCo",
+    };
+    let base = GraspRun {
+        engine,
+        ..GraspRun::default()
+    };
     // Cup grasp, no load.
     let mut grasp = Vec::new();
     for (mode, _, _) in MODES {
@@ -55,7 +71,7 @@ fn main() -> anyhow::Result<()> {
             mode,
             ..HandControllerConfig::default()
         };
-        grasp.push(grasp_run(&GraspRun::default(), &cfg)?);
+        grasp.push(grasp_run(&base, &cfg)?);
     }
     let mut csv = String::from("mode,time_s,ff_n,mf_n,rf_n,lf_n,th_n\n");
     for ((_, name, _), run) in MODES.iter().zip(&grasp) {
@@ -68,7 +84,10 @@ fn main() -> anyhow::Result<()> {
             )?;
         }
     }
-    write(&dir.join("cup_grasp_force.csv"), csv.as_bytes())?;
+    write(
+        &dir.join(format!("cup_grasp_force{suffix}.csv")),
+        csv.as_bytes(),
+    )?;
     let y_max = grasp
         .iter()
         .flatten()
@@ -78,7 +97,7 @@ fn main() -> anyhow::Result<()> {
         .iter()
         .zip(&grasp)
         .map(|((_, _, title), run)| Panel {
-            title: format!("Cup grasp, {title}: fingertip contact forces"),
+            title: format!("Cup grasp ({world}), {title}: fingertip contact forces"),
             y_desc: "contact force (N)",
             y_range: (0.0, headroom(y_max)),
             series: FINGERS
@@ -96,7 +115,7 @@ fn main() -> anyhow::Result<()> {
             marker: None,
         })
         .collect();
-    let grasp_png = dir.join("cup_grasp_force.png");
+    let grasp_png = dir.join(format!("cup_grasp_force{suffix}.png"));
     plot(&grasp_png, &panels)?;
 
     // Thumb under load.
@@ -112,7 +131,7 @@ fn main() -> anyhow::Result<()> {
             load.start_s, load.ramp_s
         ),
     );
-    let mut run = GraspRun::default();
+    let mut run = base.clone();
     run.cup.loads = vec![load];
     let mut loaded: Vec<Vec<GraspSample>> = Vec::new();
     for mode in [HandMode::FixedImpedance, HandMode::Adaptive] {
@@ -135,7 +154,7 @@ fn main() -> anyhow::Result<()> {
             )?;
         }
     }
-    write(&dir.join("thumb_load.csv"), csv.as_bytes())?;
+    write(&dir.join(format!("thumb_load{suffix}.csv")), csv.as_bytes())?;
     // Fixed gain red, adaptive blue.
     let styles = [
         ("fixed-gain impedance", RGBColor(214, 39, 40)),
@@ -165,21 +184,21 @@ fn main() -> anyhow::Result<()> {
     };
     let panels = vec![
         Panel {
-            title: "Thumb under load: THJ4 position error".to_owned(),
+            title: format!("Thumb under load ({world}): THJ4 position error"),
             y_desc: "|THJ4 error| (rad)",
             y_range: range_of(&err),
             series: err,
             marker: Some(load_marker.clone()),
         },
         Panel {
-            title: "Thumb under load: THJ4 motor effort".to_owned(),
+            title: format!("Thumb under load ({world}): THJ4 motor effort"),
             y_desc: "THJ4 effort (N m)",
             y_range: range_of(&effort),
             series: effort,
             marker: Some(load_marker),
         },
     ];
-    let load_png = dir.join("thumb_load.png");
+    let load_png = dir.join(format!("thumb_load{suffix}.png"));
     plot(&load_png, &panels)?;
     println!(
         "wrote {} and {} (+ .csv)",

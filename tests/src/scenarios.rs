@@ -13,7 +13,10 @@
 //! (`teleop_sim::PerturbationConfig`), and its sensors are noisy.
 //!
 //! Each run builds its own world and supervisor, so runs are independent and
-//! deterministic.
+//! deterministic. Every scenario runs in either simulated world ([`SimEngine`]): the
+//! joint-space `World` (penalty contacts on fixed objects) or MuJoCo (`MujocoWorld`,
+//! the same scene's objects welded in place, the same loads), with model mismatch on in
+//! both.
 
 use nalgebra::{Point3, SVector};
 use teleop_control::ConfigError;
@@ -23,7 +26,67 @@ use teleop_hardware::safety::{HandLimits, HandSafety, HandSafetyConfig, SafetyCo
 use teleop_hardware::{HandHardware, HardwareError, SafeHand, wire};
 use teleop_interfaces::joints::{FINGERTIPS, FLEXION_JOINTS};
 use teleop_remote_site::hand_controller::{HandSupervisor, HandSupervisorConfig, SupervisorError};
-use teleop_sim::{CupGraspConfig, SharedWorld, SimError, SimHand, TouchingTaskConfig, World};
+use teleop_sim::{
+    CupGraspConfig, MujocoWorld, MujocoWorldConfig, RobotWorld, SharedWorld, SimError, SimHand,
+    TouchingTaskConfig, World,
+};
+
+/// Which simulated world a scenario runs in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SimEngine {
+    /// The joint-space world (`teleop_sim::World`).
+    #[default]
+    JointSpace,
+    /// MuJoCo (`teleop_sim::MujocoWorld`, default settings: model mismatch on), the
+    /// joint-space scene's objects welded in place.
+    Mujoco,
+}
+
+impl SimEngine {
+    /// The name used in reports.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            SimEngine::JointSpace => "joint-space",
+            SimEngine::Mujoco => "MuJoCo",
+        }
+    }
+}
+
+/// What the scenarios measure that the drivers do not report: the ground truth of either
+/// world.
+pub trait ScenarioWorld: RobotWorld + 'static {
+    /// True fingertip contact forces ([`FINGERTIPS`] order), N.
+    fn tip_forces_n(&self) -> [f64; 5];
+    /// Where fingertip `finger` touches the scene now (world frame), m.
+    fn tip_contact_points(&self, finger: usize) -> Vec<Point3<f64>>;
+}
+
+impl ScenarioWorld for World {
+    fn tip_forces_n(&self) -> [f64; 5] {
+        self.fingertip_force_n()
+    }
+    fn tip_contact_points(&self, finger: usize) -> Vec<Point3<f64>> {
+        self.contacts()
+            .iter()
+            .filter(|c| c.fingertip == Some(finger))
+            .map(|c| c.point_m)
+            .collect()
+    }
+}
+
+impl ScenarioWorld for MujocoWorld {
+    fn tip_forces_n(&self) -> [f64; 5] {
+        self.fingertip_force_n()
+    }
+    fn tip_contact_points(&self, finger: usize) -> Vec<Point3<f64>> {
+        self.fingertip_contacts()
+            .into_iter()
+            .filter(|(f, _)| *f == finger)
+            .map(|(_, p)| p)
+            .collect()
+    }
+}
 
 /// Why a scenario could not run.
 #[derive(Debug, thiserror::Error)]
@@ -61,16 +124,16 @@ pub const TARGET_PERIOD_S: f64 = 1.0 / 30.0;
 
 /// The hand as the node and `remote_sim` drive it: the supervisor with the node's
 /// configuration (`controller` replaced), the simulated hand behind its safety layer.
-pub struct HandLoop {
-    world: SharedWorld,
-    hand: SafeHand<SimHand>,
+pub struct HandLoop<W: ScenarioWorld = World> {
+    world: SharedWorld<W>,
+    hand: SafeHand<SimHand<W>>,
     supervisor: HandSupervisor,
     target: SVector<f64, 17>,
     next_target_s: f64,
     dt_s: f64,
 }
 
-impl std::fmt::Debug for HandLoop {
+impl<W: ScenarioWorld> std::fmt::Debug for HandLoop<W> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("HandLoop")
             .field("dt_s", &self.dt_s)
@@ -78,13 +141,13 @@ impl std::fmt::Debug for HandLoop {
     }
 }
 
-impl HandLoop {
+impl<W: ScenarioWorld> HandLoop<W> {
     /// The loop on `world` with the control law `controller`, aiming at `target`.
     ///
     /// # Errors
     /// Supervisor or safety configuration errors.
     pub fn new(
-        world: World,
+        world: W,
         controller: &HandControllerConfig<17>,
         target: SVector<f64, 17>,
     ) -> Result<Self, ScenarioError> {
@@ -116,7 +179,7 @@ impl HandLoop {
     ///
     /// # Errors
     /// [`ScenarioError::Poisoned`].
-    pub fn world(&self) -> Result<std::sync::MutexGuard<'_, World>, ScenarioError> {
+    pub fn world(&self) -> Result<std::sync::MutexGuard<'_, W>, ScenarioError> {
         self.world.lock().map_err(|_| ScenarioError::Poisoned)
     }
 
@@ -162,7 +225,7 @@ impl HandLoop {
             .supervisor
             .step(now, Some(operator), true, &state, Some(&arm));
         self.hand.write(now, &out.command)?;
-        self.world()?.step(self.dt_s);
+        self.world()?.advance(self.dt_s)?;
         Ok(())
     }
 }
@@ -181,6 +244,8 @@ pub struct TouchingRun {
     pub duration_s: f64,
     /// Contact forces before this time are not counted (the approach), s. Default 0.2.
     pub settle_s: f64,
+    /// The simulated world. Default the joint-space one.
+    pub engine: SimEngine,
 }
 
 impl Default for TouchingRun {
@@ -191,6 +256,7 @@ impl Default for TouchingRun {
             perturbation_rad: 0.01,
             duration_s: 2.0,
             settle_s: 0.2,
+            engine: SimEngine::JointSpace,
         }
     }
 }
@@ -218,6 +284,25 @@ pub fn touching_trial(
     trials: usize,
 ) -> Result<TouchTrial, ScenarioError> {
     let world = World::touching_task(&run.task)?;
+    match run.engine {
+        SimEngine::JointSpace => touching_trial_in(world, run, controller, k, trials),
+        SimEngine::Mujoco => touching_trial_in(
+            MujocoWorld::from_joint_world(&world, MujocoWorldConfig::default())?,
+            run,
+            controller,
+            k,
+            trials,
+        ),
+    }
+}
+
+fn touching_trial_in<W: ScenarioWorld>(
+    world: W,
+    run: &TouchingRun,
+    controller: &HandControllerConfig<17>,
+    k: usize,
+    trials: usize,
+) -> Result<TouchTrial, ScenarioError> {
     // `World::touching_task` has refused an unknown finger already.
     let finger = FINGERTIPS
         .iter()
@@ -239,16 +324,12 @@ pub fn touching_trial(
         hand.step()?;
         let world = hand.world()?;
         if world.time_s() >= run.settle_s {
-            let f = world.fingertip_force_n()[finger];
+            let f = world.tip_forces_n()[finger];
             max = max.max(f);
             sum += f;
             n += 1;
-            for c in world
-                .contacts()
-                .iter()
-                .filter(|c| c.fingertip == Some(finger))
-            {
-                point_sum += c.point_m.coords;
+            for p in world.tip_contact_points(finger) {
+                point_sum += p.coords;
                 points += 1;
             }
         }
@@ -329,6 +410,8 @@ pub struct GraspRun {
     /// A sample every this many control periods. Default 5 (10 ms at the node's
     /// 500 Hz).
     pub sample_every: usize,
+    /// The simulated world. Default the joint-space one.
+    pub engine: SimEngine,
 }
 
 impl Default for GraspRun {
@@ -338,6 +421,7 @@ impl Default for GraspRun {
             traced_joint: "rh_THJ4".to_owned(),
             duration_s: 9.0,
             sample_every: 5,
+            engine: SimEngine::JointSpace,
         }
     }
 }
@@ -366,6 +450,21 @@ pub fn grasp_run(
     controller: &HandControllerConfig<17>,
 ) -> Result<Vec<GraspSample>, ScenarioError> {
     let world = World::cup_grasp(&run.cup)?;
+    match run.engine {
+        SimEngine::JointSpace => grasp_run_in(world, run, controller),
+        SimEngine::Mujoco => grasp_run_in(
+            MujocoWorld::from_joint_world(&world, MujocoWorldConfig::default())?,
+            run,
+            controller,
+        ),
+    }
+}
+
+fn grasp_run_in<W: ScenarioWorld>(
+    world: W,
+    run: &GraspRun,
+    controller: &HandControllerConfig<17>,
+) -> Result<Vec<GraspSample>, ScenarioError> {
     let j = finger_joint_index(&run.traced_joint)?;
     let target = SVector::<f64, 17>::from(run.cup.closed_posture_rad);
     let mut hand = HandLoop::new(world, controller, target)?;
@@ -379,7 +478,7 @@ pub fn grasp_run(
             let s = world.hand_state();
             samples.push(GraspSample {
                 time_s: world.time_s(),
-                fingertip_force_n: world.fingertip_force_n(),
+                fingertip_force_n: world.tip_forces_n(),
                 joint_rad: s.position_rad[j],
                 joint_target_rad: target[j],
                 joint_effort_nm: s.effort_nm[j],

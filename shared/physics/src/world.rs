@@ -151,6 +151,11 @@ pub struct PhysicsWorld {
     /// The PR2 driver's velocity loop: its position and velocity are the servos' reference.
     driver: ArmSim<ARM_DOF>,
     hand_torque: [f64; HAND_DOF],
+    /// External torques on the finger joints (a load on the hand), N m.
+    hand_external: [f64; HAND_DOF],
+    /// Bodies of the distal links ([`FINGERTIPS`](teleop_interfaces::joints::FINGERTIPS)
+    /// order), and of the scene's objects (what a fingertip contact is with).
+    distal_bodies: [usize; 5],
 }
 
 fn missing(kind: &'static str, name: &str) -> PhysicsError {
@@ -415,6 +420,10 @@ impl PhysicsWorld {
             p.arm_command_timeout_s,
         )
         .with_lags(p.arm_velocity_lag_s);
+        let mut distal_bodies = [0; 5];
+        for (f, link) in robots::shadow::DISTALS.iter().enumerate() {
+            distal_bodies[f] = obj_id(&model, MjtObjBase::mjOBJ_BODY, "body", link)?;
+        }
         let data = MjData::new(Box::new(model));
         let mut world = Self {
             data,
@@ -426,6 +435,8 @@ impl PhysicsWorld {
             objects,
             driver,
             hand_torque: [0.0; HAND_DOF],
+            hand_external: [0.0; HAND_DOF],
+            distal_bodies,
         };
         world.set_positions(&config.arm_initial_rad, &config.hand_initial_rad)?;
         Ok(world)
@@ -529,6 +540,25 @@ impl PhysicsWorld {
         Ok(())
     }
 
+    /// Sets external torques on the finger joints, N m, positive about each joint's
+    /// axis (a load on the hand: held until the next call; not clamped, not the motors').
+    ///
+    /// # Errors
+    /// [`PhysicsError::Invalid`] for a value that is not finite (nothing is changed).
+    pub fn set_hand_external_torques(
+        &mut self,
+        torque_nm: &[f64; HAND_DOF],
+    ) -> Result<(), PhysicsError> {
+        if !torque_nm.iter().all(|v| v.is_finite()) {
+            return Err(PhysicsError::Invalid {
+                what: "external hand torques",
+                why: "not finite".into(),
+            });
+        }
+        self.hand_external = *torque_nm;
+        Ok(())
+    }
+
     fn driver_step(&mut self, dt: f64) {
         self.driver.step(self.data.time(), dt);
         let measured = SVector::from(self.arm_position());
@@ -567,6 +597,9 @@ impl PhysicsWorld {
             let applied = self.data.qfrc_applied_mut();
             for (i, j) in self.arm.iter().enumerate() {
                 applied[j.dof] = bias[i];
+            }
+            for (i, j) in self.hand.iter().enumerate() {
+                applied[j.dof] = self.hand_external[i];
             }
         }
         self.data.step();
@@ -623,6 +656,36 @@ impl PhysicsWorld {
         let mut out = [0.0; 5];
         for (f, adrs) in self.touch.iter().enumerate() {
             out[f] = adrs.iter().map(|&a| s[a]).sum();
+        }
+        out
+    }
+
+    /// The fingertips' contacts with the scene (the table, the objects, welded fixtures;
+    /// not with the robot itself): finger index
+    /// ([`FINGERTIPS`](teleop_interfaces::joints::FINGERTIPS) order) and the contact
+    /// point in the world, m.
+    #[must_use]
+    pub fn fingertip_contacts(&self) -> Vec<(usize, [f64; 3])> {
+        let model = self.data.model();
+        let body_of = |g: i32| {
+            usize::try_from(g)
+                .ok()
+                .and_then(|g| model.geom_bodyid().get(g).copied())
+                .and_then(|b| usize::try_from(b).ok())
+        };
+        let scene = |b: usize| b == 0 || self.objects.iter().any(|(_, id)| *id == b);
+        let mut out = Vec::new();
+        for c in self.data.contact() {
+            let (Some(b1), Some(b2)) = (body_of(c.geom1), body_of(c.geom2)) else {
+                continue;
+            };
+            for (tip, other) in [(b1, b2), (b2, b1)] {
+                if let Some(f) = self.distal_bodies.iter().position(|&d| d == tip)
+                    && scene(other)
+                {
+                    out.push((f, c.pos));
+                }
+            }
         }
         out
     }

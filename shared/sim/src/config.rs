@@ -109,6 +109,25 @@ impl PerturbationConfig {
             arm_lag_fraction: 0.0,
         }
     }
+
+    /// Checks that every fraction lies in [0, 0.9) (both worlds call it: a factor
+    /// 1 ± 0.9 or more could make a mass or gain vanish or flip).
+    ///
+    /// # Errors
+    /// [`SimError::InvalidConfig`] naming the first bad field (`perturbation.<field>`).
+    pub fn validate(&self) -> Result<(), SimError> {
+        for (field, v) in [
+            ("perturbation.mass_fraction", self.mass_fraction),
+            ("perturbation.damping_fraction", self.damping_fraction),
+            ("perturbation.armature_fraction", self.armature_fraction),
+            ("perturbation.motor_gain_fraction", self.motor_gain_fraction),
+            ("perturbation.friction_fraction", self.friction_fraction),
+            ("perturbation.arm_lag_fraction", self.arm_lag_fraction),
+        ] {
+            check(field, v, (0.0..0.9).contains(&v), "must be in [0, 0.9)")?;
+        }
+        Ok(())
+    }
 }
 
 /// The velocity-commanded PR2 arm (+ Shadow wrist), joints in
@@ -254,6 +273,24 @@ impl NoiseConfig {
             fingertip_force_std_n: 0.0,
         }
     }
+
+    /// Checks that every standard deviation is finite and >= 0 (both worlds call it).
+    ///
+    /// # Errors
+    /// [`SimError::InvalidConfig`] naming the first bad field (`noise.<field>`).
+    pub fn validate(&self) -> Result<(), SimError> {
+        for (field, v) in [
+            ("noise.joint_position_std_rad", self.joint_position_std_rad),
+            (
+                "noise.joint_velocity_std_rad_s",
+                self.joint_velocity_std_rad_s,
+            ),
+            ("noise.fingertip_force_std_n", self.fingertip_force_std_n),
+        ] {
+            check(field, v, v >= 0.0, "must be >= 0")?;
+        }
+        Ok(())
+    }
 }
 
 fn check(field: &'static str, value: f64, ok: bool, reason: &'static str) -> Result<(), SimError> {
@@ -322,30 +359,9 @@ impl WorldConfig {
                 "contact.friction_damping_n_s_m",
                 self.contact.friction_damping_n_s_m,
             ),
-            (
-                "noise.joint_position_std_rad",
-                self.noise.joint_position_std_rad,
-            ),
-            (
-                "noise.joint_velocity_std_rad_s",
-                self.noise.joint_velocity_std_rad_s,
-            ),
-            (
-                "noise.fingertip_force_std_n",
-                self.noise.fingertip_force_std_n,
-            ),
         ];
-        let p = &self.perturbation;
-        for (field, v) in [
-            ("perturbation.mass_fraction", p.mass_fraction),
-            ("perturbation.damping_fraction", p.damping_fraction),
-            ("perturbation.armature_fraction", p.armature_fraction),
-            ("perturbation.motor_gain_fraction", p.motor_gain_fraction),
-            ("perturbation.friction_fraction", p.friction_fraction),
-            ("perturbation.arm_lag_fraction", p.arm_lag_fraction),
-        ] {
-            check(field, v, (0.0..0.9).contains(&v), "must be in [0, 0.9)")?;
-        }
+        self.noise.validate()?;
+        self.perturbation.validate()?;
         for (field, v) in non_negative {
             check(field, v, v >= 0.0, "must be >= 0")?;
         }

@@ -30,6 +30,9 @@ pub enum SimError {
         /// What is wrong.
         reason: &'static str,
     },
+    /// Something the joint-space world has that the MuJoCo world does not yet.
+    #[error("not supported by the MuJoCo world yet: {0}")]
+    Unsupported(&'static str),
     /// The physical world (MuJoCo) refused a model or a command, or became unstable.
     #[error("physics: {0}")]
     Physics(#[from] teleop_physics::PhysicsError),

@@ -129,6 +129,32 @@ impl ExternalLoad {
         }
     }
 
+    /// Checks that every number is finite (both worlds call it before taking a load).
+    ///
+    /// # Errors
+    /// [`SimError::InvalidConfig`] naming the field (`load.<field>`).
+    pub fn validate(&self) -> Result<(), SimError> {
+        let mut fields = vec![("load.start_s", self.start_s), ("load.ramp_s", self.ramp_s)];
+        match &self.target {
+            LoadTarget::JointTorque { torque_nm, .. } => {
+                fields.push(("load.torque_nm", *torque_nm))
+            }
+            LoadTarget::FingertipForce { force_n, .. } => {
+                fields.extend(force_n.iter().map(|f| ("load.force_n", *f)));
+            }
+        }
+        for (field, value) in fields {
+            if !value.is_finite() {
+                return Err(SimError::InvalidConfig {
+                    field,
+                    value,
+                    reason: "must be finite",
+                });
+            }
+        }
+        Ok(())
+    }
+
     /// Fraction of the full load at sim time `time_s`, in `[0, 1]`.
     pub fn scale_at(&self, time_s: f64) -> f64 {
         if time_s < self.start_s || self.end_s.is_some_and(|e| time_s >= e) {

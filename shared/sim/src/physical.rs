@@ -41,7 +41,7 @@ use crate::geometry::Capsule;
 use crate::hand_loop::{MotorLaw, motor_torques};
 use crate::hardware::RobotWorld;
 use crate::measure::{TrueState, at_rest, measured};
-use crate::objects::{Object, ObjectShape as FixtureShape};
+use crate::objects::{ExternalLoad, LoadTarget, Object, ObjectShape as FixtureShape};
 use crate::world::{Perturbation, World};
 
 /// Settings of the physical world (the scene comes separately).
@@ -106,23 +106,10 @@ impl MujocoWorldConfig {
     }
 
     fn validate(&self) -> Result<(), SimError> {
-        let checks = [
+        for (field, value) in [
             ("servo_kp_nm_rad", self.servo_kp_nm_rad),
             ("servo_kd_nm_s_rad", self.servo_kd_nm_s_rad),
-            (
-                "noise.joint_position_std_rad",
-                self.noise.joint_position_std_rad,
-            ),
-            (
-                "noise.joint_velocity_std_rad_s",
-                self.noise.joint_velocity_std_rad_s,
-            ),
-            (
-                "noise.fingertip_force_std_n",
-                self.noise.fingertip_force_std_n,
-            ),
-        ];
-        for (field, value) in checks {
+        ] {
             if !(value.is_finite() && value >= 0.0) {
                 return Err(SimError::InvalidConfig {
                     field,
@@ -131,7 +118,8 @@ impl MujocoWorldConfig {
                 });
             }
         }
-        Ok(())
+        self.noise.validate()?;
+        self.perturbation.validate()
     }
 }
 
@@ -157,6 +145,8 @@ pub struct MujocoWorld {
     rng: ChaCha8Rng,
     measured_arm: ArmState<ARM_DOF>,
     measured_hand: HandState,
+    /// External loads on finger joints: (joint index, full torque N m, when).
+    loads: Vec<(usize, f64, ExternalLoad)>,
 }
 
 impl MujocoWorld {
@@ -238,6 +228,7 @@ impl MujocoWorld {
             rng,
             measured_arm: at_rest().0,
             measured_hand: at_rest().1,
+            loads: Vec::new(),
         };
         world.refresh_kinematics();
         world.measure();
@@ -262,13 +253,59 @@ impl MujocoWorld {
             .collect::<Result<Vec<_>, _>>()?;
         config.arm_initial_rad = world.arm_position_rad().into();
         config.hand_initial_rad = world.hand_position_rad().into();
-        Self::new(
+        let mut out = Self::new(
             &SceneSpec {
                 table: None,
                 objects,
             },
             config,
-        )
+        )?;
+        for load in world.loads() {
+            out.add_load(load.clone())?;
+        }
+        Ok(out)
+    }
+
+    /// Adds an external load on the hand: a torque on a finger joint (MuJoCo's applied
+    /// force on that joint, ramped as the load says).
+    ///
+    /// # Errors
+    /// [`SimError::UnknownFingerJoint`], [`SimError::InvalidConfig`] for a number that
+    /// is not finite, [`SimError::Unsupported`] for a force at a fingertip.
+    pub fn add_load(&mut self, load: ExternalLoad) -> Result<(), SimError> {
+        load.validate()?;
+        match &load.target {
+            LoadTarget::JointTorque { joint, torque_nm } => {
+                let i = SHADOW_FINGER_JOINTS
+                    .iter()
+                    .position(|j| j == joint)
+                    .ok_or_else(|| SimError::UnknownFingerJoint(joint.clone()))?;
+                self.loads.push((i, *torque_nm, load));
+                Ok(())
+            }
+            LoadTarget::FingertipForce { .. } => Err(SimError::Unsupported(
+                "a load as a force at a fingertip (a torque on a finger joint is)",
+            )),
+        }
+    }
+
+    /// Ground truth: the BioTacs' normal forces, N
+    /// ([`FINGERTIPS`](teleop_interfaces::joints::FINGERTIPS) order), without the
+    /// sensors' noise.
+    #[must_use]
+    pub fn fingertip_force_n(&self) -> [f64; 5] {
+        self.physics.fingertip_forces_n()
+    }
+
+    /// Ground truth: the fingertips' contacts with the scene, finger index and world
+    /// point, m.
+    #[must_use]
+    pub fn fingertip_contacts(&self) -> Vec<(usize, Point3<f64>)> {
+        self.physics
+            .fingertip_contacts()
+            .into_iter()
+            .map(|(f, p)| (f, Point3::from(p)))
+            .collect()
     }
 
     /// The settings in use.
@@ -393,6 +430,14 @@ impl MujocoWorld {
             }
         });
         self.physics.set_hand_torques(&torque)?;
+        if !self.loads.is_empty() {
+            let t = self.time_s();
+            let mut external = [0.0; HAND_DOF];
+            for (i, torque_nm, load) in &self.loads {
+                external[*i] += torque_nm * load.scale_at(t);
+            }
+            self.physics.set_hand_external_torques(&external)?;
+        }
         self.physics.step()?;
         self.steps += 1;
         Ok(())

@@ -396,22 +396,9 @@ impl World {
     /// [`SimError::UnknownFingerJoint`] for a joint or finger name the hand lacks,
     /// [`SimError::InvalidConfig`] for non-finite numbers.
     pub fn add_load(&mut self, load: ExternalLoad) -> Result<(), SimError> {
-        let finite = |field, v: f64| {
-            if v.is_finite() {
-                Ok(())
-            } else {
-                Err(SimError::InvalidConfig {
-                    field,
-                    value: v,
-                    reason: "must be finite",
-                })
-            }
-        };
-        finite("load.start_s", load.start_s)?;
-        finite("load.ramp_s", load.ramp_s)?;
+        load.validate()?;
         let target = match &load.target {
             LoadTarget::JointTorque { joint, torque_nm } => {
-                finite("load.torque_nm", *torque_nm)?;
                 let hand_index = FINGER_JOINTS
                     .iter()
                     .position(|j| j == joint)
@@ -422,9 +409,6 @@ impl World {
                 }
             }
             LoadTarget::FingertipForce { finger, force_n } => {
-                for f in force_n {
-                    finite("load.force_n", *f)?;
-                }
                 let finger_index = FINGERTIPS
                     .iter()
                     .position(|f| f == finger)

@@ -248,6 +248,22 @@ fn bad_settings_are_refused_with_their_names() {
         panic!("NaN gain accepted");
     };
     assert!(e.to_string().contains("servo_kp_nm_rad"), "{e}");
+    // The same noise and perturbation checks as the joint-space world's.
+    let mut bad = MujocoWorldConfig::default();
+    bad.noise.joint_velocity_std_rad_s = -1.0;
+    let Err(e) = pick_world(&bad) else {
+        panic!("negative noise accepted");
+    };
+    assert!(
+        e.to_string().contains("noise.joint_velocity_std_rad_s"),
+        "{e}"
+    );
+    let mut bad = MujocoWorldConfig::default();
+    bad.perturbation.mass_fraction = 0.95;
+    let Err(e) = pick_world(&bad) else {
+        panic!("a perturbation that could make a mass vanish accepted");
+    };
+    assert!(e.to_string().contains("perturbation.mass_fraction"), "{e}");
     let bad = PickSceneConfig {
         table_below_palm_m: 5.0,
         ..PickSceneConfig::default()
@@ -292,5 +308,134 @@ fn each_arm_joint_follows_its_command_and_moves_the_others_little() -> anyhow::R
         assert!((0.95..1.1).contains(&own), "joint {j}: own peak {own}x");
         assert!(others < 0.35, "joint {j}: others at {others}x");
     }
+    Ok(())
+}
+
+/// A joint pressed into its limit through the safety layer, at the 250 Hz `remote_sim`
+/// applies it: the adaptive controller's command of 2026-12-05 (the thumb base's set
+/// point at its upper limit, 0.885 N m feedforward toward it, 7.44 N m/rad, 0.07 N m
+/// s/rad). With a cut that switched at the limit the thumb chattered at +-2 rad/s and
+/// shook the wrist at 0.04 rad/s with the arm stopped (the compose fault test's
+/// failure); the faded cut lets it settle.
+#[test]
+fn a_joint_pressed_into_its_limit_through_the_safety_layer_settles() -> anyhow::Result<()> {
+    use teleop_hardware::safety::HandLimits;
+    use teleop_hardware::{HandSafety, HandSafetyConfig, SafeHand};
+    let world = pick_world(&MujocoWorldConfig::default())?;
+    let (shared, mut arm, hand) = teleop_sim::share(world);
+    let limits = HandLimits::shadow()?;
+    let mut hand = SafeHand::new(hand, HandSafety::new(limits, HandSafetyConfig::default())?);
+    let pressed: Vec<usize> = ["THJ5", "LFJ5", "FFJ3"]
+        .iter()
+        .map(|n| {
+            teleop_interfaces::joints::finger_joint_index(&format!("rh_{n}"))
+                .ok_or_else(|| anyhow::anyhow!("{n}"))
+        })
+        .collect::<anyhow::Result<_>>()?;
+    let mut z = HandImpedance {
+        position_rad: SVector::zeros(),
+        velocity_rad_s: SVector::zeros(),
+        stiffness_nm_rad: SVector::repeat(1.2),
+        damping_nm_s_rad: SVector::repeat(0.07),
+        feedforward_nm: SVector::zeros(),
+        max_effort_nm: SVector::repeat(1.0),
+    };
+    for &i in &pressed {
+        z.position_rad[i] = limits.upper_rad[i];
+        z.stiffness_nm_rad[i] = 7.44;
+        z.feedforward_nm[i] = 0.885;
+    }
+    let dt = 1.0 / 250.0;
+    let (mut finger_v, mut wrist_v, mut over) = (0.0_f64, 0.0_f64, 0.0_f64);
+    for k in 0..750 {
+        let t = f64::from(k) * dt;
+        hand.write(t, &HandCommand::Impedance(z))?;
+        shared
+            .lock()
+            .map_err(|_| anyhow::anyhow!("poisoned"))?
+            .step(dt)?;
+        // The last second, once pressed.
+        if t >= 2.0 {
+            let h = hand.read(t + dt)?;
+            let a = arm.read(t + dt)?;
+            for &i in &pressed {
+                finger_v = finger_v.max(h.velocity_rad_s[i].abs());
+                over = over.max(h.position_rad[i] - limits.upper_rad[i]);
+            }
+            wrist_v = wrist_v.max(a.velocity_rad_s[5].abs().max(a.velocity_rad_s[6].abs()));
+        }
+    }
+    println!(
+        "pressed into the limit: fastest pressed joint {finger_v:.3} rad/s, past the limit \
+         {over:.4} rad, fastest wrist joint {wrist_v:.4} rad/s"
+    );
+    assert!(finger_v < 0.1, "chatter: {finger_v} rad/s");
+    assert!(over < 0.01, "{over} rad past the limit");
+    assert!(wrist_v < 0.01, "wrist shaken at {wrist_v} rad/s");
+    assert!(
+        hand.safety()
+            .counters()
+            .get(teleop_hardware::safety::Intervention::PositionLimit)
+            > 0
+    );
+    Ok(())
+}
+
+/// An external load on a finger joint (the screw-pouring stand-in) pushes it against
+/// the hand's servo; loads the MuJoCo world lacks or names it does not know are refused.
+#[test]
+fn a_load_on_a_finger_joint_pushes_it_and_bad_loads_are_refused() -> anyhow::Result<()> {
+    use teleop_sim::{ExternalLoad, LoadTarget, SimError};
+    let mut world = pick_world(&MujocoWorldConfig::nominal())?;
+    let j = teleop_interfaces::joints::finger_joint_index("rh_THJ4")
+        .ok_or_else(|| anyhow::anyhow!("THJ4"))?;
+    // THJ4 in the middle of its range (0..1.22 rad), held by the hand's servo.
+    let mut target = world.hand_state().position_rad;
+    target[j] = 0.6;
+    world.command_hand(&HandCommand::Position(target));
+    world.step(1.0)?;
+    let before = world.hand_state().position_rad[j];
+    let mut load = ExternalLoad::screw_pouring(1.5);
+    load.ramp_s = 0.0;
+    load.target = LoadTarget::JointTorque {
+        joint: "rh_THJ4".into(),
+        torque_nm: -0.3,
+    };
+    world.add_load(load.clone())?;
+    world.step(0.4)?;
+    let unloaded = world.hand_state().position_rad[j];
+    world.step(1.1)?;
+    let loaded = world.hand_state().position_rad[j];
+    println!("THJ4 {before:.4} -> {unloaded:.4} before the load, {loaded:.4} under it");
+    assert!((unloaded - before).abs() < 0.02, "moved before the load");
+    // The servo's 2 N m/rad against 0.3 N m: ~0.15 rad.
+    assert!(before - loaded > 0.08, "{before} -> {loaded}");
+    let mut bad = load.clone();
+    bad.target = LoadTarget::JointTorque {
+        joint: "rh_XXJ9".into(),
+        torque_nm: 0.1,
+    };
+    assert!(matches!(
+        world.add_load(bad),
+        Err(SimError::UnknownFingerJoint(_))
+    ));
+    bad = load.clone();
+    bad.start_s = f64::NAN;
+    assert!(matches!(
+        world.add_load(bad),
+        Err(SimError::InvalidConfig { .. })
+    ));
+    bad = load;
+    bad.target = LoadTarget::FingertipForce {
+        finger: "th".into(),
+        force_n: [0.0, 0.0, 1.0],
+    };
+    let Err(e) = world.add_load(bad) else {
+        panic!("a fingertip force accepted");
+    };
+    assert!(
+        e.to_string().contains("not supported by the MuJoCo world"),
+        "{e}"
+    );
     Ok(())
 }

@@ -1,4 +1,5 @@
-//! The hand's safety layer: effort limits, no push past a joint limit, no
+//! The hand's safety layer: effort limits, no push past a joint limit (faded in over
+//! the last stretch before it), no
 //! acceleration of a joint already above its speed limit, position targets inside the
 //! limits and rate-limited, and a command timeout that holds the posture.
 
@@ -35,6 +36,13 @@ pub struct HandSafetyConfig {
     pub max_stiffness_nm_rad: f64,
     /// Cap on a joint impedance's damping, N m s/rad. Default 0.5.
     pub max_damping_nm_s_rad: f64,
+    /// Near a joint limit, effort toward it is capped at this stiffness times the
+    /// distance left, N m/rad (none at and past the limit). Default 10: the cut fades
+    /// in over the last 0.1 rad for 1 N m, 0.2 rad for the 2 N m cap. A cut that
+    /// switched at the limit itself made a joint pressed into it chatter between full
+    /// and no effort at the layer's rate (MuJoCo's thumb base at +-2 rad/s, its
+    /// reaction shaking the wrist at 0.04 rad/s, on 2026-12-05).
+    pub limit_stiffness_nm_rad: f64,
 }
 
 impl Default for HandSafetyConfig {
@@ -47,6 +55,7 @@ impl Default for HandSafetyConfig {
             max_dt_s: 0.05,
             max_stiffness_nm_rad: 20.0,
             max_damping_nm_s_rad: 0.5,
+            limit_stiffness_nm_rad: 10.0,
         }
     }
 }
@@ -66,7 +75,13 @@ impl HandSafetyConfig {
         )?;
         check("max_dt_s", self.max_dt_s, 1e-4, 1.0)?;
         check("max_stiffness_nm_rad", self.max_stiffness_nm_rad, 0.0, 1e3)?;
-        check("max_damping_nm_s_rad", self.max_damping_nm_s_rad, 0.0, 10.0)
+        check("max_damping_nm_s_rad", self.max_damping_nm_s_rad, 0.0, 10.0)?;
+        check(
+            "limit_stiffness_nm_rad",
+            self.limit_stiffness_nm_rad,
+            0.1,
+            1e4,
+        )
     }
 }
 
@@ -270,11 +285,14 @@ impl HandSafety {
                 out[i] = out[i].signum() * cap;
                 clamped = true;
             }
+            // Toward a limit at most the stiffness times the room left: continuous in
+            // the position, so a joint pressed into its limit settles there.
             let q = state.position_rad[i];
-            if (q >= self.limits.upper_rad[i] && out[i] > 0.0)
-                || (q <= self.limits.lower_rad[i] && out[i] < 0.0)
-            {
-                out[i] = 0.0;
+            let k = self.config.limit_stiffness_nm_rad;
+            let up = k * (self.limits.upper_rad[i] - q).max(0.0);
+            let down = -k * (q - self.limits.lower_rad[i]).max(0.0);
+            if out[i] > up || out[i] < down {
+                out[i] = out[i].clamp(down, up);
                 at_limit = true;
             }
             let qd = state.velocity_rad_s[i];
@@ -423,6 +441,21 @@ mod tests {
         };
         assert_eq!(tau[1], 0.0);
         assert_eq!(tau[2], -0.5);
+        // Just short of the limit the push fades in with the room left (10 N m/rad x
+        // 0.03 rad), continuous in the position; short of the lower limit likewise.
+        q[1] = s.limits().upper_rad[1] - 0.03;
+        q[2] = s.limits().lower_rad[2] + 0.02;
+        let out = s.step(
+            1.5 * DT,
+            Some(&HandCommand::Effort(cmd)),
+            Some(&state(q, Joints::zeros())),
+        );
+        let Some(HandCommand::Effort(tau)) = out else {
+            panic!()
+        };
+        assert!((tau[1] - 0.3).abs() < 1e-9, "{}", tau[1]);
+        assert!((tau[2] + 0.2).abs() < 1e-9, "{}", tau[2]);
+        assert_eq!(tau[0], 0.5);
         // A joint already above 1.5x its speed limit gets no effort along its motion.
         let mut qd = Joints::zeros();
         qd[4] = 3.5;
