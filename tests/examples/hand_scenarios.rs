@@ -56,10 +56,7 @@ fn main() -> anyhow::Result<()> {
 
 /// The two figures of `engine`'s world, their files named with `suffix`.
 fn figures(dir: &Path, engine: SimEngine, suffix: &str) -> anyhow::Result<()> {
-    let world = match engine {
-        SimEngine::JointSpace => "joint-space world",
-        SimEngine::Mujoco => "MuJoCo",
-    };
+    let world = engine.name();
     let base = GraspRun {
         engine,
         ..GraspRun::default()

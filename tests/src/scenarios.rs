@@ -43,11 +43,11 @@ pub enum SimEngine {
 }
 
 impl SimEngine {
-    /// The name used in reports.
+    /// The world's name in reports and plot titles.
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
-            SimEngine::JointSpace => "joint-space",
+            SimEngine::JointSpace => "joint-space world",
             SimEngine::Mujoco => "MuJoCo",
         }
     }

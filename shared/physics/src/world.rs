@@ -154,7 +154,7 @@ pub struct PhysicsWorld {
     /// External torques on the finger joints (a load on the hand), N m.
     hand_external: [f64; HAND_DOF],
     /// Bodies of the distal links ([`FINGERTIPS`](teleop_interfaces::joints::FINGERTIPS)
-    /// order), and of the scene's objects (what a fingertip contact is with).
+    /// order): where a fingertip contact is.
     distal_bodies: [usize; 5],
 }
 

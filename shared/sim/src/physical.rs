@@ -276,9 +276,7 @@ impl MujocoWorld {
         load.validate()?;
         match &load.target {
             LoadTarget::JointTorque { joint, torque_nm } => {
-                let i = SHADOW_FINGER_JOINTS
-                    .iter()
-                    .position(|j| j == joint)
+                let i = teleop_interfaces::joints::finger_joint_index(joint)
                     .ok_or_else(|| SimError::UnknownFingerJoint(joint.clone()))?;
                 self.loads.push((i, *torque_nm, load));
                 Ok(())

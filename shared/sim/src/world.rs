@@ -5,7 +5,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use teleop_hardware::{ArmState, HandCommand, HandState};
 use teleop_interfaces::joints::{
-    FINGERTIPS, PR2_ARM_JOINTS as ARM_JOINTS, SHADOW_FINGER_JOINTS as FINGER_JOINTS,
+    PR2_ARM_JOINTS as ARM_JOINTS, SHADOW_FINGER_JOINTS as FINGER_JOINTS,
 };
 use teleop_kinematics::{GravityModel, KinematicState, LinkId, Robot, robots};
 
@@ -17,9 +17,9 @@ use super::measure::{TrueState, at_rest, measured};
 use super::objects::{ExternalLoad, LoadTarget, Object, ResolvedTarget};
 use teleop_hardware::velocity_driver::{ArmJointLimits, ArmSim};
 
-/// Finger links by fingertip ([`FINGERTIPS`] order): the BioTac is the distal link.
+/// Finger links by fingertip ([`FINGERTIPS`](teleop_interfaces::joints::FINGERTIPS) order): the BioTac is the distal link.
 const DISTAL_LINKS: [&str; 5] = robots::shadow::DISTALS;
-/// Fingertip frames ([`FINGERTIPS`] order).
+/// Fingertip frames ([`FINGERTIPS`](teleop_interfaces::joints::FINGERTIPS) order).
 pub(super) const TIP_FRAMES: [&str; 5] = robots::shadow::TIPS;
 
 /// One contact of the last step, in the world (PR2 `base_link`) frame.
@@ -27,7 +27,7 @@ pub(super) const TIP_FRAMES: [&str; 5] = robots::shadow::TIPS;
 pub struct ContactInfo {
     /// The finger link touching (look its name up with [`World::robot`]).
     pub link: LinkId,
-    /// Fingertip index ([`FINGERTIPS`] order) when the link is a BioTac (distal link).
+    /// Fingertip index ([`FINGERTIPS`](teleop_interfaces::joints::FINGERTIPS) order) when the link is a BioTac (distal link).
     pub fingertip: Option<usize>,
     /// Index of the object in [`World::objects`].
     pub object: usize,
@@ -399,9 +399,7 @@ impl World {
         load.validate()?;
         let target = match &load.target {
             LoadTarget::JointTorque { joint, torque_nm } => {
-                let hand_index = FINGER_JOINTS
-                    .iter()
-                    .position(|j| j == joint)
+                let hand_index = teleop_interfaces::joints::finger_joint_index(joint)
                     .ok_or_else(|| SimError::UnknownFingerJoint(joint.clone()))?;
                 ResolvedTarget::Joint {
                     hand_index,
@@ -409,9 +407,7 @@ impl World {
                 }
             }
             LoadTarget::FingertipForce { finger, force_n } => {
-                let finger_index = FINGERTIPS
-                    .iter()
-                    .position(|f| f == finger)
+                let finger_index = teleop_interfaces::joints::fingertip_index(finger)
                     .ok_or_else(|| SimError::UnknownFingerJoint(finger.clone()))?;
                 ResolvedTarget::Fingertip {
                     finger: finger_index,
@@ -782,7 +778,7 @@ impl World {
         self.inertia
     }
 
-    /// True fingertip normal forces ([`FINGERTIPS`] order), N, without noise.
+    /// True fingertip normal forces ([`FINGERTIPS`](teleop_interfaces::joints::FINGERTIPS) order), N, without noise.
     pub fn fingertip_force_n(&self) -> [f64; 5] {
         self.tip_force
     }
@@ -801,7 +797,7 @@ impl World {
         Ok(self.robot.link_pose(&self.kin, id))
     }
 
-    /// Fingertip frame origins (`rh_<f>tip`, [`FINGERTIPS`] order) in the world, m.
+    /// Fingertip frame origins (`rh_<f>tip`, [`FINGERTIPS`](teleop_interfaces::joints::FINGERTIPS) order) in the world, m.
     pub fn fingertip_positions_m(&self) -> [Point3<f64>; 5] {
         self.tip_links
             .map(|l| Point3::from(self.robot.link_pose(&self.kin, l).translation.vector))
@@ -844,7 +840,7 @@ impl World {
             .min_by(f64::total_cmp)
     }
 
-    /// The distal (BioTac) link of each fingertip, [`FINGERTIPS`] order.
+    /// The distal (BioTac) link of each fingertip, [`FINGERTIPS`](teleop_interfaces::joints::FINGERTIPS) order.
     ///
     /// # Errors
     /// Only if the embedded model lacked the link (a test builds it).

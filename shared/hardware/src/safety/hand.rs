@@ -279,6 +279,7 @@ impl HandSafety {
     fn filter_effort(&mut self, tau: &Joints, state: &HandState) -> Joints {
         let mut out = *tau;
         let (mut clamped, mut at_limit, mut runaway) = (false, false, false);
+        let k = self.config.limit_stiffness_nm_rad;
         for i in 0..FINGER_JOINTS {
             let cap = self.effort_cap[i];
             if out[i].abs() > cap {
@@ -288,7 +289,6 @@ impl HandSafety {
             // Toward a limit at most the stiffness times the room left: continuous in
             // the position, so a joint pressed into its limit settles there.
             let q = state.position_rad[i];
-            let k = self.config.limit_stiffness_nm_rad;
             let up = k * (self.limits.upper_rad[i] - q).max(0.0);
             let down = -k * (q - self.limits.lower_rad[i]).max(0.0);
             if out[i] > up || out[i] < down {
