@@ -259,4 +259,9 @@ async fn raw_over_limit_commands_are_refused_or_limited_and_counted() {
         println!("{name} = {}", get(name));
         assert!(get(name) >= at_least, "{name} = {}", get(name));
     }
+    // The pick scene's job was judged all along (no observation refused) and, with
+    // nobody doing it, not done.
+    assert_eq!(get("job.judge_errors"), 0);
+    assert_eq!(get("job.succeeded"), 0);
+    assert_eq!(get("job.lifted"), 0);
 }

@@ -177,6 +177,9 @@ impl NodeConfig for SimNodeConfig {
                 return Err(format!("safety.{field} must name a node"));
             }
         }
+        if self.scene == SceneKind::Pick {
+            self.pick.job_config().map_err(|e| e.to_string())?;
+        }
         Ok(())
     }
 }
@@ -231,6 +234,10 @@ pub struct SimNode {
     sim_start_s: f64,
     hardware_errors: u64,
     last_error: String,
+    /// The scene's job judged from ground truth (the pick scene), and the observations
+    /// it refused.
+    job: Option<teleop_physics::PickPlaceJudge>,
+    job_errors: u64,
 }
 
 impl SimNode {
@@ -258,6 +265,10 @@ impl SimNode {
             cfg.safety.arm.clone(),
         )?;
         let hand_safety = HandSafety::new(HandLimits::shadow()?, cfg.safety.hand)?;
+        let job = match cfg.scene {
+            SceneKind::Pick => Some(teleop_physics::PickPlaceJudge::new(cfg.pick.job_config()?)?),
+            _ => None,
+        };
         tracing::info!(scene = ?cfg.scene, engine = ?cfg.engine, arm_from = %cfg.safety.arm_controller_node,
             hand_from = %cfg.safety.hand_controller_node, "simulator running in real time");
         Ok(Self {
@@ -274,6 +285,8 @@ impl SimNode {
             sim_start_s,
             hardware_errors: 0,
             last_error: String::new(),
+            job,
+            job_errors: 0,
         })
     }
 
@@ -327,6 +340,17 @@ impl Node for SimNode {
         let (mut arm_state, mut hand_state) = (world.arm_state(), world.hand_state());
         arm_state.time_s = now_s;
         hand_state.time_s = now_s;
+        let judged = self.job.as_mut().map(|judge| {
+            let was_final = judge.verdict().is_final();
+            let verdict = judge
+                .step(
+                    world.time_s(),
+                    world.arm_state().position_rad.as_slice(),
+                    &world.object_poses(),
+                )
+                .cloned();
+            (was_final, verdict)
+        });
         let render = self.cameras.is_some() && self.camera_due.due(now_s);
         let camera = if render {
             self.cameras.as_mut().map(|c| c.render(&*world, now_s))
@@ -336,6 +360,16 @@ impl Node for SimNode {
         drop(world);
         if let Err(e) = stepped {
             self.fail("world", e);
+        }
+        match judged {
+            Some((false, Ok(verdict))) if verdict.is_final() => {
+                tracing::info!(?verdict, "the scene's job is judged");
+            }
+            Some((_, Err(e))) => {
+                self.job_errors += 1;
+                self.last_error = format!("job judge: {e}");
+            }
+            _ => {}
         }
         if let Err(e) = self.arm_endpoint.publish_state(&arm_state) {
             self.fail("arm state", e);
@@ -371,6 +405,9 @@ impl Node for SimNode {
                 self.cameras.as_ref().map_or(0, |c| c.frames),
             ),
         ];
+        if let Some(judge) = &self.job {
+            out.extend(job_counters(judge, self.job_errors));
+        }
         out.extend(self.arm_endpoint.counters());
         out.extend(self.hand_endpoint.counters());
         out.extend(self.arm.safety().counters().named("safety.arm"));
@@ -400,6 +437,37 @@ impl Node for SimNode {
             tracing::warn!("stopping the arm: {e}");
         }
     }
+}
+
+/// The job's standing as status counters: `job.lifted` (0/1), `job.succeeded` (0/1),
+/// `job.completion_ms`, `job.failed.fell_off_table` / `job.failed.timed_out` (0/1),
+/// `job.judge_errors` (observations it refused).
+fn job_counters(judge: &teleop_physics::PickPlaceJudge, errors: u64) -> Vec<(String, u64)> {
+    use teleop_physics::{Failure, Verdict};
+    let (succeeded, completion_ms, fell, timed_out) = match judge.verdict() {
+        Verdict::Running => (0, 0, 0, 0),
+        Verdict::Succeeded { completion_s } => {
+            // Non-negative and far below 2^64 ms.
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            let ms = (completion_s * 1e3).round().max(0.0) as u64;
+            (1, ms, 0, 0)
+        }
+        Verdict::Failed { failure, .. } => match failure {
+            Failure::FellOffTable { .. } => (0, 0, 1, 0),
+            Failure::TimedOut => (0, 0, 0, 1),
+        },
+    };
+    [
+        ("job.lifted", u64::from(judge.lifted())),
+        ("job.succeeded", succeeded),
+        ("job.completion_ms", completion_ms),
+        ("job.failed.fell_off_table", fell),
+        ("job.failed.timed_out", timed_out),
+        ("job.judge_errors", errors),
+    ]
+    .into_iter()
+    .map(|(n, v)| (n.to_owned(), v))
+    .collect()
 }
 
 /// Runs the simulator on the system clock until `duration` elapses (forever if `None`)

@@ -1,11 +1,13 @@
 //! The robot site's physical world on [MuJoCo](https://mujoco.org) through `mujoco-rs`:
 //! the PR2 arm with the Shadow hand generated from the project's URDFs ([`mjcf`]), a table
-//! with free objects ([`scene`]), and the simulated drivers' loops ([`world`]).
+//! with free objects ([`scene`]), the simulated drivers' loops ([`world`]), and the judge
+//! of a pick-and-place job from ground truth ([`judge`]).
 //!
 //! The native library is MuJoCo 3.17.0 from the `mujoco` PyPI wheel, found or installed
 //! by the build script ([`library`]); `docs/physics.md` says how to use one of your own.
 
 pub mod error;
+pub mod judge;
 pub mod library;
 pub mod mjcf;
 pub mod scene;
@@ -13,6 +15,7 @@ pub mod scripted;
 pub mod world;
 
 pub use error::PhysicsError;
+pub use judge::{Failure, PickPlaceConfig, PickPlaceJudge, TargetRegion, Verdict};
 pub use scene::{ObjectShape, ObjectSpec, ObjectVariation, SceneSpec, TableSpec};
 pub use world::{ARM_DOF, HAND_DOF, PhysicsConfig, PhysicsWorld, RobotParams, world_mjcf};
 

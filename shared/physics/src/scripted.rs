@@ -1,8 +1,9 @@
 //! A scripted grasp for the tests and the benchmark: a cube under the palm of the arm's
 //! zero posture (palm down, fingers forward), the fingers closed by a joint PD loop at
 //! the simulation rate (the Shadow hand's own position loop), the arm lifting it through
-//! the driver's velocity loop and carrying it sideways. No operator and no controller
-//! node: it exercises the world alone.
+//! the driver's velocity loop and carrying it sideways; optionally putting it down there,
+//! letting go and returning to the starting posture (a whole pick-and-place job). No
+//! operator and no controller node: it exercises the world alone.
 
 use nalgebra::Point3;
 use teleop_kinematics::Robot;
@@ -75,7 +76,9 @@ impl CubeUnderPalm {
     }
 }
 
-/// The script: close the hand, lift, carry, hold.
+/// The script: close the hand, lift, carry, hold; with `place_and_return`, after the
+/// carry: lower (as long as the lift), open (as long as the closing), raise, carry back,
+/// lower, hold.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GraspLiftCarry {
     /// Close the fingers at all (false: the same arm motion with the hand open).
@@ -97,6 +100,8 @@ pub struct GraspLiftCarry {
     /// Shoulder pan velocity over `carry_s` after the lift, rad/s.
     pub carry_s: f64,
     pub carry_rad_s: f64,
+    /// Put the cube down after the carry, let go and go back to the start.
+    pub place_and_return: bool,
 }
 
 impl Default for GraspLiftCarry {
@@ -114,6 +119,7 @@ impl Default for GraspLiftCarry {
             lift_rad_s: -0.2,
             carry_s: 1.5,
             carry_rad_s: 0.3,
+            place_and_return: false,
         }
     }
 }
@@ -126,7 +132,11 @@ impl GraspLiftCarry {
         if !self.close_hand {
             return target;
         }
-        let c = ((t_s - self.close_start_s) / self.close_s).clamp(0.0, 1.0);
+        let mut c = ((t_s - self.close_start_s) / self.close_s).clamp(0.0, 1.0);
+        if self.place_and_return {
+            let open_start = self.carry_end_s() + self.lift_s;
+            c -= ((t_s - open_start) / self.close_s).clamp(0.0, 1.0);
+        }
         // FF, MF, RF: J4 J3 J2 at 0..3, 3..6, 6..9; LF: J5 J4 J3 J2 at 9..13; TH 13..17.
         for j3 in [1, 4, 7, 11] {
             target[j3] = self.finger_flex_rad * c;
@@ -138,16 +148,44 @@ impl GraspLiftCarry {
         target
     }
 
+    fn carry_end_s(&self) -> f64 {
+        self.lift_start_s + self.lift_s + self.carry_s
+    }
+
+    /// When the script's last motion ends, s.
+    #[must_use]
+    pub fn end_s(&self) -> f64 {
+        if self.place_and_return {
+            // lower, open, raise, carry back, lower
+            self.carry_end_s() + 3.0 * self.lift_s + self.close_s + self.carry_s
+        } else {
+            self.carry_end_s()
+        }
+    }
+
     /// The arm's velocity command at time `t_s`.
     #[must_use]
     pub fn arm_velocity(&self, t_s: f64) -> [f64; ARM_DOF] {
         let mut v = [0.0; ARM_DOF];
-        let lift_end = self.lift_start_s + self.lift_s;
-        if (self.lift_start_s..lift_end).contains(&t_s) {
-            v[1] = self.lift_rad_s;
+        let mut phases = vec![
+            (self.lift_s, 1, self.lift_rad_s),
+            (self.carry_s, 0, self.carry_rad_s),
+        ];
+        if self.place_and_return {
+            phases.extend([
+                (self.lift_s, 1, -self.lift_rad_s),
+                (self.close_s, 0, 0.0),
+                (self.lift_s, 1, self.lift_rad_s),
+                (self.carry_s, 0, -self.carry_rad_s),
+                (self.lift_s, 1, -self.lift_rad_s),
+            ]);
         }
-        if (lift_end..lift_end + self.carry_s).contains(&t_s) {
-            v[0] = self.carry_rad_s;
+        let mut from = self.lift_start_s;
+        for (duration, joint, speed) in phases {
+            if (from..from + duration).contains(&t_s) {
+                v[joint] = speed;
+            }
+            from += duration;
         }
         v
     }

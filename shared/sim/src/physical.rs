@@ -655,6 +655,37 @@ pub struct PickSceneConfig {
     /// Sideways (world y) distance of the can and the cube from the palm, m. Default
     /// 0.15.
     pub object_offset_m: f64,
+    /// The job judged in this scene (from ground truth, in the simulator's report).
+    pub job: PickJobConfig,
+}
+
+/// The pick scene's job: move `object` onto a spot of the table, judged by
+/// [`teleop_physics::PickPlaceJudge`] (lifted, at rest with its centre within
+/// `target_half_xy_m` of the spot at its resting height +- 2 cm, the arm back at its
+/// starting posture; nothing fallen off the table; within the time limit).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PickJobConfig {
+    /// `can` or `cube`. Default `can` (thesis ch. 6.4: "pick a Pringles can").
+    pub object: String,
+    /// The spot, from the palm of the starting posture in the world's x-y plane, m.
+    /// Default [0.1, 0]: on the table between the can and the cube, 10 cm further out.
+    pub target_from_palm_xy_m: [f64; 2],
+    /// Default 0.05 m.
+    pub target_half_xy_m: f64,
+    /// Default 300 s.
+    pub time_limit_s: f64,
+}
+
+impl Default for PickJobConfig {
+    fn default() -> Self {
+        Self {
+            object: "can".to_owned(),
+            target_from_palm_xy_m: [0.1, 0.0],
+            target_half_xy_m: 0.05,
+            time_limit_s: 300.0,
+        }
+    }
 }
 
 impl Default for PickSceneConfig {
@@ -664,6 +695,7 @@ impl Default for PickSceneConfig {
             hand_posture_rad: [0.0; HAND_DOF],
             table_below_palm_m: 0.4,
             object_offset_m: 0.15,
+            job: PickJobConfig::default(),
         }
     }
 }
@@ -686,15 +718,7 @@ impl PickSceneConfig {
                 });
             }
         }
-        let robot = robots::pr2_arm()?;
-        let mut q = robot.neutral_positions();
-        for (i, name) in PR2_ARM_JOINTS.iter().enumerate() {
-            q[robot.dof_index(name)?] = self.arm_posture_rad[i];
-        }
-        let mut kin = robot.new_state();
-        robot.update(&mut kin, &q)?;
-        let palm = robot.link_pose(&kin, robot.link_id(robots::pr2::WRIST)?);
-        let p = palm.translation.vector;
+        let p = self.palm_m()?;
         let top = p.z - self.table_below_palm_m;
         if top <= 0.05 {
             return Err(SimError::InvalidConfig {
@@ -716,6 +740,88 @@ impl PickSceneConfig {
                 teleop_physics::scene::cube("cube", 0.05, [p.x, p.y - d], top),
             ],
         })
+    }
+
+    /// The palm's position at the starting posture, m.
+    fn palm_m(&self) -> Result<Vector3<f64>, SimError> {
+        let robot = robots::pr2_arm()?;
+        let mut q = robot.neutral_positions();
+        for (i, name) in PR2_ARM_JOINTS.iter().enumerate() {
+            q[robot.dof_index(name)?] = self.arm_posture_rad[i];
+        }
+        let mut kin = robot.new_state();
+        robot.update(&mut kin, &q)?;
+        let palm = robot.link_pose(&kin, robot.link_id(robots::pr2::WRIST)?);
+        Ok(palm.translation.vector)
+    }
+
+    /// The judge's settings for this scene's job: the target spot on the table at the
+    /// job object's resting height.
+    ///
+    /// # Errors
+    /// The scene's errors; an object not in the scene; a bad target size or time limit.
+    pub fn job_config(&self) -> Result<teleop_physics::PickPlaceConfig, SimError> {
+        for (field, value) in [
+            (
+                "pick.job.target_from_palm_xy_m",
+                self.job.target_from_palm_xy_m[0],
+            ),
+            (
+                "pick.job.target_from_palm_xy_m",
+                self.job.target_from_palm_xy_m[1],
+            ),
+        ] {
+            if !value.is_finite() {
+                return Err(SimError::InvalidConfig {
+                    field,
+                    value,
+                    reason: "must be finite",
+                });
+            }
+        }
+        for (field, value) in [
+            ("pick.job.target_half_xy_m", self.job.target_half_xy_m),
+            ("pick.job.time_limit_s", self.job.time_limit_s),
+        ] {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(SimError::InvalidConfig {
+                    field,
+                    value,
+                    reason: "must be finite and > 0",
+                });
+            }
+        }
+        let scene = self.scene()?;
+        let table_top_z_m = scene.table.map_or(0.0, |t| t.top_z_m);
+        let object = scene
+            .objects
+            .iter()
+            .find(|o| o.name == self.job.object)
+            .ok_or_else(|| SimError::InvalidObject {
+                name: self.job.object.clone(),
+                reason: "pick.job.object names no object of the pick scene (can, cube)",
+            })?;
+        let p = self.palm_m()?;
+        let h = self.job.target_half_xy_m;
+        let mut job = teleop_physics::PickPlaceConfig::new(
+            &self.job.object,
+            teleop_physics::TargetRegion {
+                centre_m: [
+                    p.x + self.job.target_from_palm_xy_m[0],
+                    p.y + self.job.target_from_palm_xy_m[1],
+                    object.position_m[2],
+                ],
+                half_extent_m: [h, h, 0.02],
+            },
+            table_top_z_m,
+        );
+        job.time_limit_s = self.job.time_limit_s;
+        job.validate().map_err(|_| SimError::InvalidConfig {
+            field: "pick.job",
+            value: f64::NAN,
+            reason: "refused by the job's judge",
+        })?;
+        Ok(job)
     }
 
     /// The config of a world that starts at this scene's arm and hand postures.

@@ -274,6 +274,45 @@ fn bad_settings_are_refused_with_their_names() {
     assert!(e.to_string().contains("table_below_palm_m"), "{e}");
 }
 
+/// The pick scene's job: the can to a spot 10 cm further out than the palm, between the
+/// can and the cube, at the can's resting height; at rest nobody moved it, so a world
+/// left alone for 2 s is judged still running, the can never lifted; bad settings named.
+#[test]
+fn the_pick_scenes_job_is_judged_from_the_worlds_ground_truth() -> anyhow::Result<()> {
+    let pick = PickSceneConfig::default();
+    let job = pick.job_config()?;
+    let scene = pick.scene()?;
+    let [can, cube] = [&scene.objects[0], &scene.objects[1]];
+    assert_eq!(job.object, "can");
+    let spot = job.target.centre_m;
+    assert!((spot[1] - (can.position_m[1] + cube.position_m[1]) / 2.0).abs() < 1e-9);
+    assert!((spot[0] - (can.position_m[0] + 0.1)).abs() < 1e-9);
+    assert!((spot[2] - can.position_m[2]).abs() < 1e-9);
+    let mut world = pick_world(&MujocoWorldConfig::default())?;
+    let mut judge = teleop_physics::PickPlaceJudge::new(job)?;
+    for _ in 0..200 {
+        world.advance(0.01)?;
+        judge.step(
+            world.time_s(),
+            world.arm_state().position_rad.as_slice(),
+            &world.object_poses(),
+        )?;
+    }
+    assert_eq!(*judge.verdict(), teleop_physics::Verdict::Running);
+    assert!(!judge.lifted());
+    assert_eq!(judge.started_s(), None, "the arm held still");
+
+    let mut bad = PickSceneConfig::default();
+    bad.job.object = "bowl".into();
+    let e = bad.job_config().unwrap_err();
+    assert!(e.to_string().contains("pick.job.object"), "{e}");
+    let mut bad = PickSceneConfig::default();
+    bad.job.target_half_xy_m = 0.0;
+    let e = bad.job_config().unwrap_err();
+    assert!(e.to_string().contains("pick.job.target_half_xy_m"), "{e}");
+    Ok(())
+}
+
 /// Each arm joint alone stepped to a velocity command: how closely the physical arm
 /// follows its driver (own overshoot) and how much the others move with it (coupling
 /// through the arm's inertia, held by the servos' finite stiffness). Prints the figures

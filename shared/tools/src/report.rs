@@ -92,6 +92,56 @@ pub struct GoalCheck {
     pub met: Option<bool>,
 }
 
+/// How the robot world's job ended, as `remote_sim` judged it.
+#[derive(Debug, Clone, Serialize, PartialEq, Default)]
+pub struct JobOutcome {
+    pub lifted: bool,
+    pub succeeded: bool,
+    /// From the robot's first motion to its return to the starting pose, s.
+    pub completion_s: Option<f64>,
+    /// `fell_off_table` or `timed_out`; `None` while running or after a success.
+    pub failure: Option<String>,
+    /// Observations the judge refused (non-finite, missing object).
+    pub judge_errors: u64,
+}
+
+impl JobOutcome {
+    /// From the simulator's final status counters, if it judged a job.
+    #[must_use]
+    pub fn from_counters(counter: impl Fn(&str) -> Option<u64>) -> Option<Self> {
+        let succeeded = counter("job.succeeded")? > 0;
+        let failure = ["fell_off_table", "timed_out"]
+            .into_iter()
+            .find(|f| counter(&format!("job.failed.{f}")).unwrap_or(0) > 0)
+            .map(str::to_owned);
+        Some(Self {
+            lifted: counter("job.lifted").unwrap_or(0) > 0,
+            succeeded,
+            completion_s: succeeded
+                .then(|| counter("job.completion_ms").map(|ms| ms as f64 / 1e3))
+                .flatten(),
+            failure,
+            judge_errors: counter("job.judge_errors").unwrap_or(0),
+        })
+    }
+
+    /// One line for the text report.
+    #[must_use]
+    pub fn describe(&self) -> String {
+        let what = match (&self.failure, self.completion_s) {
+            (Some(f), _) => format!("failed ({})", f.replace('_', " ")),
+            (None, Some(t)) if self.succeeded => format!("succeeded in {t:.1} s"),
+            _ if self.lifted => "not finished (the object was lifted)".to_owned(),
+            _ => "not finished (the object was never lifted)".to_owned(),
+        };
+        if self.judge_errors > 0 {
+            format!("{what}; {} observations refused", self.judge_errors)
+        } else {
+            what
+        }
+    }
+}
+
 /// The report.
 #[derive(Debug, Clone, Serialize, PartialEq, Default)]
 pub struct RunReport {
@@ -144,6 +194,9 @@ pub struct RunReport {
     /// The PR2 arm controller's stops by reason (its `arm.stop.*` counters): a stale
     /// input or a lost site stops the arm, and the error above then grows.
     pub pr2_stops: BTreeMap<String, u64>,
+    /// The robot world's job, judged from ground truth by the simulator (`remote_sim`'s
+    /// `job.*` counters; `None` when its scene has no job or it gave no final status).
+    pub job: Option<JobOutcome>,
     pub finger_target_frames: usize,
     /// Mean absolute joint error per frame, rad.
     pub hand_joint_mean_error_rad: ErrorSummary,
@@ -679,6 +732,7 @@ impl Recorder {
                 }
             }
         }
+        r.job = JobOutcome::from_counters(|n| counter("remote_sim", n));
         r.realtime_scheduling = realtime_scheduling(finals);
         r.hand_offline_test_error_rad = counter(
             teleop_interfaces::nodes::HAND_INFERENCE,
@@ -990,6 +1044,13 @@ impl RunReport {
                 .map(|(k, v)| format!("{k} x{v}"))
                 .collect();
             let _ = writeln!(s, "  PR2 arm stops: {}", stops.join(", "));
+        }
+        if let Some(job) = &self.job {
+            let _ = writeln!(
+                s,
+                "robot world's job (judged by remote_sim from ground truth): {}",
+                job.describe()
+            );
         }
         let h = &self.hand_joint_mean_error_rad;
         let _ = writeln!(
@@ -1362,6 +1423,44 @@ mod tests {
                 "real-time FIFO scheduling: hand_inference 50, local_sim (asked 50, refused: normal)"
             ),
             "{text}"
+        );
+    }
+
+    #[test]
+    fn the_job_outcome_is_read_from_the_simulators_counters() {
+        let counters = |pairs: &'static [(&'static str, u64)]| {
+            move |n: &str| pairs.iter().find(|(k, _)| *k == n).map(|(_, v)| *v)
+        };
+        assert_eq!(JobOutcome::from_counters(counters(&[])), None);
+        let done = JobOutcome::from_counters(counters(&[
+            ("job.lifted", 1),
+            ("job.succeeded", 1),
+            ("job.completion_ms", 9_640),
+            ("job.failed.fell_off_table", 0),
+            ("job.failed.timed_out", 0),
+            ("job.judge_errors", 0),
+        ]))
+        .unwrap();
+        assert_eq!(done.completion_s, Some(9.64));
+        assert_eq!(done.describe(), "succeeded in 9.6 s");
+        let fell = JobOutcome::from_counters(counters(&[
+            ("job.lifted", 1),
+            ("job.succeeded", 0),
+            ("job.completion_ms", 0),
+            ("job.failed.fell_off_table", 1),
+            ("job.judge_errors", 2),
+        ]))
+        .unwrap();
+        assert_eq!(
+            fell.describe(),
+            "failed (fell off table); 2 observations refused"
+        );
+        let running =
+            JobOutcome::from_counters(counters(&[("job.lifted", 0), ("job.succeeded", 0)]))
+                .unwrap();
+        assert_eq!(
+            running.describe(),
+            "not finished (the object was never lifted)"
         );
     }
 }
