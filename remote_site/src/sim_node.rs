@@ -345,7 +345,7 @@ impl Node for SimNode {
             let verdict = judge
                 .step(
                     world.time_s(),
-                    world.arm_state().position_rad.as_slice(),
+                    arm_state.position_rad.as_slice(),
                     &world.object_poses(),
                 )
                 .cloned();
