@@ -28,17 +28,24 @@ use std::time::Duration;
 
 use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
-use teleop_bus::{Bus, BusConfig, Publisher};
+use teleop_bus::{Bus, BusConfig, Publisher, Subscriber};
 use teleop_hardware::safety::{ArmSafety, ArmSafetyConfig};
 use teleop_hardware::{ArmCommand, ArmHardware, SafeArm};
 use teleop_hardware_bus::ArmEndpoint;
 use teleop_interfaces::hardware::UR5_ARM;
 use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 use teleop_interfaces::topics;
-use teleop_msgs::{Header, Image, JointState, Lifecycle, OperatorInput, PoseStamped, Time};
+use teleop_msgs::{
+    CompressedImage, Header, Image, JointState, Lifecycle, OperatorInput, PoseStamped, TFMessage,
+    Time,
+};
 use teleop_node::{FinalReport, Node, NodeConfig, Periodic, SchedulingConfig};
+use teleop_sim::operator_site::watching::{
+    Phase, RobotEye, ScenePercept, ViewGate, WatchingCounters,
+};
 use teleop_sim::operator_site::{
-    MocapReading, OperatorSiteConfig, OperatorWorld, SharedOperatorWorld, SimUr5, UR5_DOF,
+    MocapReading, OperatorModel, OperatorSiteConfig, OperatorWorld, SharedOperatorWorld, SimUr5,
+    UR5_DOF, WatchingOperator,
 };
 
 use crate::wrist_tracker::pose_msg;
@@ -162,6 +169,185 @@ pub struct LocalSimNode {
     /// Wall time of the last depth render, µs.
     last_render_us: u64,
     last_error: String,
+    /// The operator who watches the display (`operator = "watching"`).
+    watcher: Option<Watcher>,
+}
+
+/// The watching operator and what it watches: the feedback joint states, the camera
+/// views' stamps and the objects' poses up to the newest view.
+struct Watcher {
+    operator: WatchingOperator,
+    gate: ViewGate,
+    eye: RobotEye,
+    arm_states: Subscriber<JointState>,
+    hand_states: Subscriber<JointState>,
+    views: [Subscriber<CompressedImage>; 2],
+    objects: Subscriber<TFMessage>,
+    /// The newest ground truth received (not limited by the views), for the log of
+    /// perceived vs true.
+    newest_truth: Option<ScenePercept>,
+    views_received: u64,
+    bad_input: u64,
+    /// Largest distance between the object as perceived and as last received, mm.
+    max_perceived_error_mm: f64,
+}
+
+fn secs(t: Time) -> f64 {
+    t.as_nanos() as f64 * 1e-9
+}
+
+fn scene_of(msg: &TFMessage) -> Option<ScenePercept> {
+    let stamp_s = msg.transforms.first().map(|t| secs(t.header.stamp))?;
+    let objects = msg
+        .transforms
+        .iter()
+        .map(|t| {
+            let (v, q) = (&t.transform.translation, &t.transform.rotation);
+            (
+                t.child_frame_id.clone(),
+                Isometry3::from_parts(
+                    nalgebra::Translation3::new(v.x, v.y, v.z),
+                    nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+                        q.w, q.x, q.y, q.z,
+                    )),
+                ),
+            )
+        })
+        .collect();
+    Some(ScenePercept { stamp_s, objects })
+}
+
+impl Watcher {
+    async fn new(cfg: &OperatorSiteConfig, bus: &Bus) -> anyhow::Result<Self> {
+        Ok(Self {
+            operator: WatchingOperator::new(
+                cfg.watching.clone(),
+                cfg.motion_scale,
+                cfg.start_delay_s,
+            )
+            .map_err(anyhow::Error::msg)?,
+            gate: ViewGate::new(),
+            eye: RobotEye::new()?,
+            arm_states: bus.subscriber(&topics::PR2_JOINT_STATES).await?,
+            hand_states: bus.subscriber(&topics::SHADOW_JOINT_STATES).await?,
+            views: [
+                bus.subscriber(&topics::REMOTE_CAMERA_TOP).await?,
+                bus.subscriber(&topics::REMOTE_CAMERA_SIDE).await?,
+            ],
+            objects: bus.subscriber(&topics::SIM_ROBOT_OBJECT_POSES).await?,
+            newest_truth: None,
+            views_received: 0,
+            bad_input: 0,
+            max_perceived_error_mm: 0.0,
+        })
+    }
+
+    /// Takes in what arrived and returns the operator's sample for `now_s`.
+    fn step(&mut self, now_s: f64) -> (teleop_sim::operator_site::TaskSample, Option<String>) {
+        let mut error = None;
+        while let Some(r) = self.objects.try_recv() {
+            match scene_of(&r.msg) {
+                Some(scene) => {
+                    self.newest_truth = Some(scene.clone());
+                    self.gate.object_poses(scene);
+                }
+                None => self.bad_input += 1,
+            }
+        }
+        for sub in &self.views {
+            while let Some(r) = sub.try_recv() {
+                self.views_received += 1;
+                self.gate.view_received(secs(r.msg.header.stamp));
+            }
+        }
+        while let Some(scene) = self.gate.take_visible() {
+            self.operator.perceive_scene(now_s, scene);
+        }
+        while let Some(r) = self.hand_states.try_recv() {
+            if let Err(e) = self.eye.hand_joints(&r.msg.name, &r.msg.position) {
+                self.bad_input += 1;
+                error = Some(e);
+            }
+        }
+        while let Some(r) = self.arm_states.try_recv() {
+            match self
+                .eye
+                .arm_joints(secs(r.msg.header.stamp), &r.msg.name, &r.msg.position)
+            {
+                Ok(p) => self.operator.perceive_robot(r.receive_time_s(), p),
+                Err(e) => {
+                    self.bad_input += 1;
+                    error = Some(e);
+                }
+            }
+        }
+        let sample = self.operator.step(now_s);
+        let object = &self.operator.config().object.clone();
+        if let (Some(seen), Some(truth)) = (self.operator.perceived_scene(), &self.newest_truth)
+            && let (Some(a), Some(b)) = (seen.object(object), truth.object(object))
+        {
+            let mm = (a.translation.vector - b.translation.vector).norm() * 1e3;
+            self.max_perceived_error_mm = self.max_perceived_error_mm.max(mm);
+        }
+        for d in self.operator.take_decisions() {
+            let truth = self
+                .newest_truth
+                .as_ref()
+                .and_then(|t| t.object(object))
+                .map(|p| p.translation.vector);
+            let seen = self
+                .operator
+                .perceived_scene()
+                .and_then(|t| t.object(object))
+                .map(|p| p.translation.vector);
+            let off_mm = match (seen, truth) {
+                (Some(a), Some(b)) => (a - b).norm() * 1e3,
+                _ => f64::NAN,
+            };
+            tracing::info!(
+                phase = d.phase.name(),
+                t_s = d.t_s,
+                perceived_vs_true_mm = off_mm,
+                "operator: {}",
+                d.what
+            );
+        }
+        (sample, error)
+    }
+
+    fn counters(&self) -> Vec<(String, u64)> {
+        let WatchingCounters {
+            robot_percepts,
+            scene_percepts,
+            submovements,
+            grasp_attempts,
+            goals_not_reached,
+        } = self.operator.counters();
+        let phase = self.operator.phase();
+        vec![
+            ("operator.phase".to_owned(), phase.index()),
+            ("operator.done".to_owned(), u64::from(phase == Phase::Done)),
+            (
+                "operator.gave_up".to_owned(),
+                u64::from(phase == Phase::GaveUp),
+            ),
+            ("operator.robot_percepts".to_owned(), robot_percepts),
+            ("operator.scene_percepts".to_owned(), scene_percepts),
+            ("operator.views_received".to_owned(), self.views_received),
+            ("operator.submovements".to_owned(), submovements),
+            ("operator.grasp_attempts".to_owned(), grasp_attempts),
+            ("operator.goals_not_reached".to_owned(), goals_not_reached),
+            ("operator.bad_input".to_owned(), self.bad_input),
+            (
+                "operator.max_perceived_error_mm".to_owned(),
+                // Non-negative, a few hundred at most.
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                {
+                    self.max_perceived_error_mm.round() as u64
+                },
+            ),
+        ]
+    }
 }
 
 impl std::fmt::Debug for LocalSimNode {
@@ -189,8 +375,12 @@ impl LocalSimNode {
         let world = std::sync::Arc::new(std::sync::Mutex::new(world));
         let safety = ArmSafety::new(chain, cfg.safety.ur5.clone())?;
         let camera = &cfg.operator_site.camera;
-        tracing::info!(task = cfg.operator_site.task.name(), ur5_from = %cfg.safety.ur5_controller_node,
-            "operator-site simulator running in real time");
+        let watcher = match cfg.operator_site.operator {
+            OperatorModel::Scripted => None,
+            OperatorModel::Watching => Some(Watcher::new(&cfg.operator_site, bus).await?),
+        };
+        tracing::info!(task = cfg.operator_site.task.name(), operator = ?cfg.operator_site.operator,
+            ur5_from = %cfg.safety.ur5_controller_node, "operator-site simulator running in real time");
         Ok(Self {
             period: Duration::from_secs_f64(1.0 / cfg.operator_site.mocap.rate_hz),
             ur5: SafeArm::new(SimUr5::new(world.clone()), safety),
@@ -213,6 +403,7 @@ impl LocalSimNode {
             counters: LocalSimCounters::default(),
             last_render_us: 0,
             last_error: String::new(),
+            watcher,
         })
     }
 
@@ -305,6 +496,14 @@ impl Node for LocalSimNode {
         if lag > 0.0 {
             world.step(lag.min(0.1));
         }
+        // The watching operator acts on what has reached the site so far.
+        if let Some(watcher) = &mut self.watcher {
+            let (sample, error) = watcher.step(now_s);
+            world.drive(sample);
+            if let Some(e) = error {
+                self.last_error = format!("operator's view: {e}");
+            }
+        }
         // Motion capture: every sample due since the last tick, each stamped with its
         // own capture time (a late tick does not change the capture rate).
         let period = world.mocap_period_s();
@@ -384,7 +583,13 @@ impl Node for LocalSimNode {
         let c = &self.counters;
         let mut out = vec![
             ("sim.time_ms".to_owned(), sim_ms),
-            ("sim.task_repetitions".to_owned(), reps),
+            // The watching operator's one job counts as a repetition once it is over.
+            (
+                "sim.task_repetitions".to_owned(),
+                self.watcher.as_ref().map_or(reps, |w| {
+                    u64::from(matches!(w.operator.phase(), Phase::Done | Phase::GaveUp))
+                }),
+            ),
             ("sim.hardware_errors".to_owned(), c.hardware_errors),
             ("mocap.samples".to_owned(), c.marker_samples),
             ("mocap.dropouts".to_owned(), c.marker_dropouts),
@@ -400,6 +605,9 @@ impl Node for LocalSimNode {
             ),
             ("camera.render_us".to_owned(), self.last_render_us),
         ];
+        if let Some(w) = &self.watcher {
+            out.extend(w.counters());
+        }
         out.extend(self.ur5_endpoint.counters());
         out.extend(self.ur5.safety().counters().named("safety.ur5"));
         out

@@ -21,7 +21,7 @@ use teleop_hardware::{ArmHardware, HandHardware, SafeArm, SafeHand};
 use teleop_hardware_bus::{ArmEndpoint, HandEndpoint};
 use teleop_interfaces::hardware::{PR2_ARM, SHADOW_HAND};
 use teleop_interfaces::topics;
-use teleop_msgs::{Image, Lifecycle};
+use teleop_msgs::{Header, Image, Lifecycle, TFMessage, Transform, TransformStamped};
 use teleop_node::{FinalReport, Node, NodeConfig, Periodic, SchedulingConfig};
 use teleop_sim::{
     CameraViewsConfig, CupGraspConfig, MujocoWorld, MujocoWorldConfig, PickSceneConfig, RobotWorld,
@@ -184,6 +184,42 @@ impl NodeConfig for SimNodeConfig {
     }
 }
 
+/// The objects' poses as one `tf2_msgs/TFMessage`: world -> each object, stamped
+/// `now_s`. Objects with a non-finite pose are left out.
+#[must_use]
+pub fn object_poses_msg(now_s: f64, poses: &[(String, nalgebra::Isometry3<f64>)]) -> TFMessage {
+    // Seconds since the epoch: far inside the i64 ns range.
+    #[allow(clippy::cast_possible_truncation)]
+    let stamp = teleop_msgs::Time::from_nanos((now_s * 1e9) as i64);
+    TFMessage {
+        transforms: poses
+            .iter()
+            .filter_map(|(name, pose)| {
+                let t = pose.translation.vector;
+                let q = pose.rotation;
+                let all = [t.x, t.y, t.z, q.i, q.j, q.k, q.w];
+                all.iter().all(|v| v.is_finite()).then(|| TransformStamped {
+                    header: Header::new(stamp, "world"),
+                    child_frame_id: name.clone(),
+                    transform: Transform {
+                        translation: teleop_msgs::Vector3 {
+                            x: t.x,
+                            y: t.y,
+                            z: t.z,
+                        },
+                        rotation: teleop_msgs::Quaternion {
+                            x: q.i,
+                            y: q.j,
+                            z: q.k,
+                            w: q.w,
+                        },
+                    },
+                })
+            })
+            .collect(),
+    }
+}
+
 /// Builds the configured world.
 ///
 /// # Errors
@@ -229,6 +265,9 @@ pub struct SimNode {
     hand_endpoint: HandEndpoint,
     cameras: Option<CameraViews>,
     camera_due: Periodic,
+    /// The objects' true poses, published with each camera view (same stamp) for the
+    /// operator model (simulation only).
+    objects_pub: Publisher<TFMessage>,
     /// Node-clock time matching sim time `sim_start_s`.
     start_s: Option<f64>,
     sim_start_s: f64,
@@ -281,6 +320,7 @@ impl SimNode {
                 .await?,
             cameras,
             camera_due: Periodic::at_rate(cfg.cameras.rate_hz),
+            objects_pub: bus.publisher(&topics::SIM_ROBOT_OBJECT_POSES).await?,
             start_s: None,
             sim_start_s,
             hardware_errors: 0,
@@ -352,12 +392,20 @@ impl Node for SimNode {
             (was_final, verdict)
         });
         let render = self.cameras.is_some() && self.camera_due.due(now_s);
-        let camera = if render {
-            self.cameras.as_mut().map(|c| c.render(&*world, now_s))
+        let (camera, objects) = if render {
+            (
+                self.cameras.as_mut().map(|c| c.render(&*world, now_s)),
+                Some(object_poses_msg(now_s, &world.object_poses())),
+            )
         } else {
-            None
+            (None, None)
         };
         drop(world);
+        if let Some(msg) = objects
+            && let Err(e) = self.objects_pub.put(&msg)
+        {
+            self.fail("object poses", e);
+        }
         if let Err(e) = stepped {
             self.fail("world", e);
         }

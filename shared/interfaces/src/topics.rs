@@ -7,7 +7,7 @@ use std::marker::PhantomData;
 
 use teleop_msgs::{
     CompressedImage, FingertipPressures, Header, Image, JointCommand, JointState, Message,
-    NodeStatus, OperatorInput, PoseStamped,
+    NodeStatus, OperatorInput, PoseStamped, TFMessage,
 };
 
 /// Which way a topic crosses (or does not cross) between the two sites.
@@ -356,6 +356,20 @@ pub const SIM_OPERATOR_SHADOW_JOINTS: Topic<JointState> = Topic::new(
     Publishers::Nodes(&["local_sim"]),
     "Simulation ground truth: the operator's true finger posture retargeted to the 17 Shadow finger joints (rad)",
 );
+/// Simulation ground truth: the robot world's free objects, one transform per object
+/// from the world frame to a child frame named after it, stamped with the capture time
+/// of the camera views rendered from the same world state. The watching operator model
+/// (`local_sim`) takes from it only the poses no newer than the newest camera view the
+/// operator site has received: what the display shows, not more.
+pub const SIM_ROBOT_OBJECT_POSES: Topic<TFMessage> = Topic::new(
+    "teleop/sim/robot/object_poses",
+    RemoteToLocal,
+    15.0,
+    Q::State,
+    None,
+    Publishers::Nodes(&["remote_sim"]),
+    "Simulation ground truth: the robot world's objects (world -> object name), stamped like the camera views rendered from the same state; the operator model uses them only up to the newest received view",
+);
 /// UR5 joint states.
 pub const UR5_JOINT_STATES: Topic<JointState> = Topic::new(
     "teleop/ur5/joint_states",
@@ -505,6 +519,7 @@ pub const ALL: &[TopicSpec] = &[
     HW_PEDALS.spec,
     SIM_OPERATOR_HAND_POSE.spec,
     SIM_OPERATOR_SHADOW_JOINTS.spec,
+    SIM_ROBOT_OBJECT_POSES.spec,
 ];
 
 /// Looks a topic up by name (leading/trailing slashes ignored).

@@ -36,7 +36,7 @@ pub trait Message:
 
 /// Every message type of this crate that travels as a topic, by description: for tools
 /// that meet a type by its name (recorders, replay, bridges).
-pub fn topic_types() -> [&'static MsgDescription; 9] {
+pub fn topic_types() -> [&'static MsgDescription; 10] {
     [
         PoseStamped::description(),
         JointState::description(),
@@ -47,6 +47,7 @@ pub fn topic_types() -> [&'static MsgDescription; 9] {
         JointCommand::description(),
         NodeStatus::description(),
         Header::description(),
+        TFMessage::description(),
     ]
 }
 

@@ -250,6 +250,25 @@ message!(
     ]
 );
 
+// ---------------------------------------------------------------- tf2_msgs
+
+/// `tf2_msgs/msg/TFMessage`: a list of stamped transforms (what `/tf` carries). The
+/// robot-site simulator's ground-truth object poses travel as one: each object a
+/// transform from the world frame to a child frame named after it.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct TFMessage {
+    pub transforms: Vec<TransformStamped>,
+}
+message!(
+    TFMessage,
+    "tf2_msgs/msg/TFMessage",
+    "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087",
+    [F::seq(
+        "transforms",
+        B::Nested(TransformStamped::description)
+    )]
+);
+
 // ---------------------------------------------------------------- sensor_msgs
 
 /// `sensor_msgs/msg/JointState`: radians, rad/s, N·m, in the order of `name`.
@@ -625,6 +644,7 @@ pub fn all_descriptions() -> Vec<(&'static MsgDescription, &'static str)> {
         (PoseStamped::description(), PoseStamped::TYPE_HASH),
         (Transform::description(), Transform::TYPE_HASH),
         (TransformStamped::description(), TransformStamped::TYPE_HASH),
+        (TFMessage::description(), TFMessage::TYPE_HASH),
         (JointState::description(), JointState::TYPE_HASH),
         (Image::description(), Image::TYPE_HASH),
         (CompressedImage::description(), CompressedImage::TYPE_HASH),

@@ -3,14 +3,14 @@
 
 use teleop_msgs::{
     CompressedImage, FingertipPressures, Header, Image, JointCommand, JointState, Message,
-    NodeStatus, OperatorInput, Point, Pose, PoseStamped, Quaternion, Time, Transform,
+    NodeStatus, OperatorInput, Point, Pose, PoseStamped, Quaternion, TFMessage, Time, Transform,
     TransformStamped, Vector3,
 };
 
 #[test]
 fn computed_hash_equals_declared_hash_for_every_type() {
     let all = teleop_msgs::all_descriptions();
-    assert_eq!(all.len(), 16);
+    assert_eq!(all.len(), 17);
     let mut mismatches = Vec::new();
     for (desc, declared) in &all {
         let computed = desc.type_hash();
@@ -41,6 +41,7 @@ fn all_descriptions_lists_every_type_once() {
         PoseStamped::TYPE_NAME,
         Transform::TYPE_NAME,
         TransformStamped::TYPE_NAME,
+        TFMessage::TYPE_NAME,
         JointState::TYPE_NAME,
         Image::TYPE_NAME,
         CompressedImage::TYPE_NAME,
@@ -76,6 +77,10 @@ fn published_kilted_hashes() {
         "RIHS01_0a241f87d04668d94099cbb5ba11691d5ad32c2f29682e4eb5653424bd275206",
     );
     assert_hash::<Image>("RIHS01_d31d41a9a4c4bc8eae9be757b0beed306564f7526c88ea6a4588fb9582527d47");
+    // As ROS 2's generated type support declares it (and rosbags 0.11.9 computes it).
+    assert_hash::<TFMessage>(
+        "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087",
+    );
     // Also as rosbags 0.11.9 computes it (ROS2_KILTED store).
     assert_hash::<CompressedImage>(
         "RIHS01_15640771531571185e2efc8a100baf923961a4d15d5569652e6cb6691e8e371a",

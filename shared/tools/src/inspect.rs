@@ -10,7 +10,7 @@ use teleop_bus::{Bus, BusConfig, SourcePolicy, StatsSnapshot, Subscriber};
 use teleop_interfaces::topics::{self, Topic, TopicSpec};
 use teleop_msgs::{
     CompressedImage, FingertipPressures, Header, Image, JointCommand, JointState, Message,
-    NodeStatus, OperatorInput, PoseStamped,
+    NodeStatus, OperatorInput, PoseStamped, TFMessage,
 };
 
 /// Output format of `topic echo`.
@@ -48,6 +48,7 @@ macro_rules! dispatch {
             t if t == JointCommand::TYPE_NAME => $f::<JointCommand>($($args),*).await,
             t if t == NodeStatus::TYPE_NAME => $f::<NodeStatus>($($args),*).await,
             t if t == Header::TYPE_NAME => $f::<Header>($($args),*).await,
+            t if t == TFMessage::TYPE_NAME => $f::<TFMessage>($($args),*).await,
             other => bail!("no decoder for type {other}"),
         }
     }};

@@ -23,7 +23,7 @@ use teleop_local_site::operator_display::OperatorDisplayConfig;
 use teleop_local_site::wrist_tracker::{PanelSource, WristTrackerConfig};
 use teleop_msgs::{Lifecycle, NodeStatus};
 use teleop_node::ZenohArgs;
-use teleop_sim::operator_site::TaskKind;
+use teleop_sim::operator_site::{OperatorModel, TaskKind};
 use tokio::process::{Child, Command};
 
 use crate::report::Recorder;
@@ -45,8 +45,10 @@ pub struct LaunchArgs {
     /// Seconds each node gets to shut down after SIGINT before it is killed.
     #[arg(long, default_value_t = 5.0)]
     pub grace_s: f64,
-    /// Run this operator task once and stop when it is done (pick_and_place, pouring,
-    /// sweeping, fader, precision). Default: the simulator's configured task, repeated
+    /// Run this operator task once and stop when it is done: `pick` (the operator who
+    /// watches the display moves the robot world's can onto its target, judged by the
+    /// robot-site simulator) or a scripted motion (pick_and_place, pouring, sweeping,
+    /// fader, precision). Default: the simulator's configured task, repeated
     /// until Ctrl-C or `--duration-s`.
     #[arg(long)]
     pub task: Option<String>,
@@ -208,6 +210,10 @@ fn forward_keys(
     Ok(mode)
 }
 
+/// The task of the operator who watches the display and does the robot world's pick
+/// job (`[pick.job]` of `remote_sim`), judged by the robot-site simulator.
+pub const PICK_JOB: &str = "pick";
+
 /// The simulator's config for this run: the shipped file or the defaults, with the
 /// task chosen on the command line (run once).
 fn local_sim_config(args: &LaunchArgs) -> anyhow::Result<Option<(PathBuf, String)>> {
@@ -215,15 +221,20 @@ fn local_sim_config(args: &LaunchArgs) -> anyhow::Result<Option<(PathBuf, String
     let Some(task) = &args.task else {
         return Ok(None);
     };
-    cfg.operator_site.task = TaskKind::ALL
-        .into_iter()
-        .find(|k| k.name() == task)
-        .with_context(|| {
-            format!(
-                "unknown task {task:?}; the tasks are: {}",
-                TaskKind::ALL.map(TaskKind::name).join(", ")
-            )
-        })?;
+    if task == PICK_JOB {
+        cfg.operator_site.operator = OperatorModel::Watching;
+    } else {
+        cfg.operator_site.operator = OperatorModel::Scripted;
+        cfg.operator_site.task = TaskKind::ALL
+            .into_iter()
+            .find(|k| k.name() == task)
+            .with_context(|| {
+                format!(
+                    "unknown task {task:?}; the tasks are: {PICK_JOB}, {}",
+                    TaskKind::ALL.map(TaskKind::name).join(", ")
+                )
+            })?;
+    }
     cfg.operator_site.repeat = false;
     let path = write_run_config("local_sim", &cfg)?;
     Ok(Some((path, task.clone())))

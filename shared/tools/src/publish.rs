@@ -11,7 +11,7 @@ use teleop_interfaces::topics::{self, Topic, TopicSpec};
 use teleop_msgs::description::{Arity, BaseType, MsgDescription};
 use teleop_msgs::{
     CompressedImage, FingertipPressures, Header, Image, JointCommand, JointState, Message,
-    NodeStatus, OperatorInput, PoseStamped,
+    NodeStatus, OperatorInput, PoseStamped, TFMessage,
 };
 
 #[derive(Debug, Clone, clap::Args)]
@@ -260,6 +260,9 @@ pub async fn run(cfg: &BusConfig, args: &PubArgs) -> anyhow::Result<()> {
             publish_typed::<NodeStatus>(&bus, spec, args, &texts).await
         }
         t if t == Header::TYPE_NAME => publish_typed::<Header>(&bus, spec, args, &texts).await,
+        t if t == TFMessage::TYPE_NAME => {
+            publish_typed::<TFMessage>(&bus, spec, args, &texts).await
+        }
         other => bail!("no encoder for type {other}"),
     }?;
     eprintln!("published {sent} samples on /{} as {name}", spec.name);

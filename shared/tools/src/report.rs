@@ -142,6 +142,66 @@ impl JobOutcome {
     }
 }
 
+/// What the operator who watches the display did (`local_sim`'s `operator.*`
+/// counters), if it ran.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct OperatorOutcome {
+    /// The phase it ended in (`done`, `gave_up`, or where it was stopped).
+    pub phase: String,
+    pub grasp_attempts: u64,
+    pub submovements: u64,
+    /// Goals it went on from without reaching them (after its corrections).
+    pub goals_not_reached: u64,
+    /// Camera views and robot states it perceived.
+    pub views_received: u64,
+    pub scene_percepts: u64,
+    pub robot_percepts: u64,
+    /// Largest distance between the object as the operator saw it and as it was at
+    /// the newest ground truth received, mm.
+    pub max_perceived_error_mm: u64,
+    /// Feedback it could not use (missing joints, non-finite values).
+    pub bad_input: u64,
+}
+
+impl OperatorOutcome {
+    /// From the operator-site simulator's final status counters.
+    #[must_use]
+    pub fn from_counters(counter: impl Fn(&str) -> Option<u64>) -> Option<Self> {
+        let phase = counter("operator.phase")?;
+        let phase = teleop_sim::operator_site::watching::Phase::ALL
+            .get(usize::try_from(phase).unwrap_or(usize::MAX))
+            .map_or_else(|| format!("unknown ({phase})"), |p| p.name().to_owned());
+        let c = |n: &str| counter(n).unwrap_or(0);
+        Some(Self {
+            phase,
+            grasp_attempts: c("operator.grasp_attempts"),
+            submovements: c("operator.submovements"),
+            goals_not_reached: c("operator.goals_not_reached"),
+            views_received: c("operator.views_received"),
+            scene_percepts: c("operator.scene_percepts"),
+            robot_percepts: c("operator.robot_percepts"),
+            max_perceived_error_mm: c("operator.max_perceived_error_mm"),
+            bad_input: c("operator.bad_input"),
+        })
+    }
+
+    /// One line for the text report.
+    #[must_use]
+    pub fn describe(&self) -> String {
+        format!(
+            "ended in phase {}, {} grasp attempt(s), {} submovements ({} goals left unreached); saw {} of {} views received, the object up to {} mm from where it was; {} feedback messages unusable",
+            self.phase,
+            self.grasp_attempts,
+            self.submovements,
+            self.goals_not_reached,
+            self.scene_percepts,
+            self.views_received,
+            self.max_perceived_error_mm,
+            self.bad_input
+        )
+    }
+}
+
 /// The report.
 #[derive(Debug, Clone, Serialize, PartialEq, Default)]
 pub struct RunReport {
@@ -197,6 +257,8 @@ pub struct RunReport {
     /// The robot world's job, judged from ground truth by the simulator (`remote_sim`'s
     /// `job.*` counters; `None` when its scene has no job or it gave no final status).
     pub job: Option<JobOutcome>,
+    /// The operator who watches the display, if it drove this run.
+    pub operator: Option<OperatorOutcome>,
     pub finger_target_frames: usize,
     /// Mean absolute joint error per frame, rad.
     pub hand_joint_mean_error_rad: ErrorSummary,
@@ -733,6 +795,7 @@ impl Recorder {
             }
         }
         r.job = JobOutcome::from_counters(|n| counter("remote_sim", n));
+        r.operator = OperatorOutcome::from_counters(|n| counter("local_sim", n));
         r.realtime_scheduling = realtime_scheduling(finals);
         r.hand_offline_test_error_rad = counter(
             teleop_interfaces::nodes::HAND_INFERENCE,
@@ -1051,6 +1114,9 @@ impl RunReport {
                 "robot world's job (judged by remote_sim from ground truth): {}",
                 job.describe()
             );
+        }
+        if let Some(op) = &self.operator {
+            let _ = writeln!(s, "operator watching the display: {}", op.describe());
         }
         let h = &self.hand_joint_mean_error_rad;
         let _ = writeln!(
@@ -1424,6 +1490,33 @@ mod tests {
             ),
             "{text}"
         );
+    }
+
+    #[test]
+    fn the_watching_operators_outcome_is_read_from_the_simulators_counters() {
+        let counters = |pairs: &'static [(&'static str, u64)]| {
+            move |n: &str| pairs.iter().find(|(k, _)| *k == n).map(|(_, v)| *v)
+        };
+        assert_eq!(OperatorOutcome::from_counters(counters(&[])), None);
+        let done = OperatorOutcome::from_counters(counters(&[
+            ("operator.phase", 12),
+            ("operator.grasp_attempts", 2),
+            ("operator.submovements", 17),
+            ("operator.views_received", 600),
+            ("operator.scene_percepts", 590),
+            ("operator.max_perceived_error_mm", 31),
+        ]))
+        .unwrap();
+        assert_eq!(done.phase, "done");
+        let mut r = good_run();
+        r.operator = Some(done);
+        let text = r.text();
+        assert!(
+            text.contains("operator watching the display: ended in phase done, 2 grasp attempt(s), 17 submovements (0 goals left unreached); saw 590 of 600 views received, the object up to 31 mm"),
+            "{text}"
+        );
+        let odd = OperatorOutcome::from_counters(counters(&[("operator.phase", 99)])).unwrap();
+        assert_eq!(odd.phase, "unknown (99)");
     }
 
     #[test]

@@ -28,7 +28,9 @@
 
 pub mod mocap;
 pub mod tasks;
+pub mod watching;
 
+use std::collections::VecDeque;
 use std::sync::{Arc, Mutex, MutexGuard};
 
 use nalgebra::{Isometry3, Point3, SVector, Translation3};
@@ -52,6 +54,7 @@ use teleop_render::{
 pub use mocap::{Mocap, MocapConfig, MocapCounts, MocapReading};
 pub use tasks::{TaskKind, TaskSample, TaskScript};
 use teleop_hardware::velocity_driver::{ArmJointLimits, ArmSim};
+pub use watching::{OperatorModel, WatchingConfig, WatchingOperator};
 
 /// UR5 joint count.
 pub const UR5_DOF: usize = 6;
@@ -180,7 +183,13 @@ impl Default for DepthCameraConfig {
 pub struct OperatorSiteConfig {
     /// Seed of everything random (hand shape, noise, the UR5's perturbation).
     pub seed: u64,
+    /// Who moves the operator's hand: the scripted `task` (default) or the operator who
+    /// watches the display and does the robot world's pick job (`watching`).
+    pub operator: OperatorModel,
+    /// The scripted operator's task.
     pub task: TaskKind,
+    /// The watching operator's settings.
+    pub watching: WatchingConfig,
     /// The operator waits this long before the first task (the camera settles), s.
     pub start_delay_s: f64,
     /// Repeat the task (with `pause_s` between repetitions) until stopped.
@@ -204,7 +213,9 @@ impl Default for OperatorSiteConfig {
     fn default() -> Self {
         Self {
             seed: 11,
+            operator: OperatorModel::Scripted,
             task: TaskKind::PickAndPlace,
+            watching: WatchingConfig::default(),
             start_delay_s: 2.0,
             repeat: true,
             pause_s: 2.0,
@@ -270,6 +281,9 @@ impl OperatorSiteConfig {
             return Err("operator_site.ur5.initial_position_rad must be finite".into());
         }
         self.rest_pose.validate("operator_site.rest_pose")?;
+        if self.operator == OperatorModel::Watching {
+            self.watching.validate()?;
+        }
         self.mocap.validate()
     }
 }
@@ -305,6 +319,8 @@ pub struct OperatorWorld {
     capsules: Vec<HandCapsule>,
     noise: Option<DepthNoise>,
     camera_camera: Camera,
+    /// The live operator's samples (sim time, sample), oldest first: the last second.
+    live: VecDeque<(f64, TaskSample)>,
 }
 
 impl OperatorWorld {
@@ -372,6 +388,7 @@ impl OperatorWorld {
             capsules: Vec::new(),
             noise,
             camera_camera,
+            live: VecDeque::new(),
             time_s: 0.0,
             pending_s: 0.0,
             cfg,
@@ -435,12 +452,61 @@ impl OperatorWorld {
     /// The task's state now.
     #[must_use]
     pub fn task_sample(&self) -> TaskSample {
-        self.script.sample(self.phase(self.time_s).0)
+        self.sample_at(self.time_s)
+    }
+
+    /// The operator at sim time `t_s`: from the script, or from the live operator's
+    /// samples (interpolated between them; the hand at rest, open, before the first).
+    fn sample_at(&self, t_s: f64) -> TaskSample {
+        if self.cfg.operator == OperatorModel::Scripted {
+            return self.script.sample(self.phase(t_s).0);
+        }
+        let rest = || TaskSample {
+            offset_m: nalgebra::Vector3::zeros(),
+            rotation: nalgebra::UnitQuaternion::identity(),
+            posture: teleop_hand_model::sampling::Synergy::Open.posture(),
+            under_way: false,
+        };
+        let after = self.live.iter().position(|(t, _)| *t > t_s);
+        match after {
+            Some(0) => self.live.front().map_or_else(rest, |(_, s)| s.clone()),
+            Some(i) => {
+                let (t0, a) = &self.live[i - 1];
+                let (t1, b) = &self.live[i];
+                let f = ((t_s - t0) / (t1 - t0)).clamp(0.0, 1.0);
+                TaskSample {
+                    offset_m: a.offset_m.lerp(&b.offset_m, f),
+                    rotation: a.rotation.slerp(&b.rotation, f),
+                    posture: a.posture,
+                    under_way: a.under_way,
+                }
+            }
+            None => self.live.back().map_or_else(rest, |(_, s)| s.clone()),
+        }
+    }
+
+    /// The live operator's sample for now (ignored by a scripted world). Samples are
+    /// kept for a second, so the motion capture can measure between them.
+    pub fn drive(&mut self, sample: TaskSample) {
+        if self.live.back().is_some_and(|(t, _)| *t >= self.time_s) {
+            self.live.pop_back();
+        }
+        self.live.push_back((self.time_s, sample));
+        while self
+            .live
+            .front()
+            .is_some_and(|(t, _)| *t < self.time_s - 1.0)
+        {
+            self.live.pop_front();
+        }
     }
 
     /// Completed repetitions of the task.
     #[must_use]
     pub fn repetitions_done(&self) -> u64 {
+        if self.cfg.operator == OperatorModel::Watching {
+            return 0;
+        }
         let (tau, k, _) = self.phase(self.time_s);
         if tau >= self.script.duration_s() {
             k + 1
@@ -483,7 +549,10 @@ impl OperatorWorld {
     #[must_use]
     pub fn pedals(&self) -> PedalState {
         PedalState {
-            clutch: self.phase(self.time_s).2,
+            clutch: match self.cfg.operator {
+                OperatorModel::Scripted => self.phase(self.time_s).2,
+                OperatorModel::Watching => self.task_sample().under_way,
+            },
             enable: self.cfg.enable,
             camera_stop: false,
             motion_scale: self.cfg.motion_scale,
@@ -512,7 +581,7 @@ impl OperatorWorld {
     /// asked for).
     #[must_use]
     pub fn hand_pose_at(&self, t_s: f64) -> Isometry3<f64> {
-        self.hand_pose_of(&self.script.sample(self.phase(t_s).0))
+        self.hand_pose_of(&self.sample_at(t_s))
     }
 
     /// One motion-capture sample at sim time `t_s` (call once per capture period, in
