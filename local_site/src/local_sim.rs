@@ -192,25 +192,24 @@ struct Watcher {
     max_perceived_error_mm: f64,
 }
 
-fn secs(t: Time) -> f64 {
-    t.as_nanos() as f64 * 1e-9
-}
-
 fn scene_of(msg: &TFMessage) -> Option<ScenePercept> {
-    let stamp_s = msg.transforms.first().map(|t| secs(t.header.stamp))?;
+    let stamp_s = msg.transforms.first()?.header.stamp.as_secs_f64();
     let objects = msg
         .transforms
         .iter()
         .map(|t| {
-            let (v, q) = (&t.transform.translation, &t.transform.rotation);
+            let v = &t.transform.translation;
+            let pose = teleop_msgs::Pose {
+                position: teleop_msgs::Point {
+                    x: v.x,
+                    y: v.y,
+                    z: v.z,
+                },
+                orientation: t.transform.rotation,
+            };
             (
                 t.child_frame_id.clone(),
-                Isometry3::from_parts(
-                    nalgebra::Translation3::new(v.x, v.y, v.z),
-                    nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
-                        q.w, q.x, q.y, q.z,
-                    )),
-                ),
+                teleop_hardware::wire::isometry(&pose),
             )
         })
         .collect();
@@ -257,7 +256,7 @@ impl Watcher {
         for sub in &self.views {
             while let Some(r) = sub.try_recv() {
                 self.views_received += 1;
-                self.gate.view_received(secs(r.msg.header.stamp));
+                self.gate.view_received(r.msg.header.stamp.as_secs_f64());
             }
         }
         while let Some(scene) = self.gate.take_visible() {
@@ -270,10 +269,11 @@ impl Watcher {
             }
         }
         while let Some(r) = self.arm_states.try_recv() {
-            match self
-                .eye
-                .arm_joints(secs(r.msg.header.stamp), &r.msg.name, &r.msg.position)
-            {
+            match self.eye.arm_joints(
+                r.msg.header.stamp.as_secs_f64(),
+                &r.msg.name,
+                &r.msg.position,
+            ) {
                 Ok(p) => self.operator.perceive_robot(r.receive_time_s(), p),
                 Err(e) => {
                     self.bad_input += 1;
@@ -282,28 +282,19 @@ impl Watcher {
             }
         }
         let sample = self.operator.step(now_s);
-        let object = &self.operator.config().object.clone();
-        if let (Some(seen), Some(truth)) = (self.operator.perceived_scene(), &self.newest_truth)
-            && let (Some(a), Some(b)) = (seen.object(object), truth.object(object))
-        {
-            let mm = (a.translation.vector - b.translation.vector).norm() * 1e3;
-            self.max_perceived_error_mm = self.max_perceived_error_mm.max(mm);
+        // The object as perceived against the newest ground truth received.
+        let object = &self.operator.config().object;
+        let off_mm = match (self.operator.perceived_scene(), &self.newest_truth) {
+            (Some(seen), Some(truth)) => match (seen.object(object), truth.object(object)) {
+                (Some(a), Some(b)) => (a.translation.vector - b.translation.vector).norm() * 1e3,
+                _ => f64::NAN,
+            },
+            _ => f64::NAN,
+        };
+        if off_mm.is_finite() {
+            self.max_perceived_error_mm = self.max_perceived_error_mm.max(off_mm);
         }
         for d in self.operator.take_decisions() {
-            let truth = self
-                .newest_truth
-                .as_ref()
-                .and_then(|t| t.object(object))
-                .map(|p| p.translation.vector);
-            let seen = self
-                .operator
-                .perceived_scene()
-                .and_then(|t| t.object(object))
-                .map(|p| p.translation.vector);
-            let off_mm = match (seen, truth) {
-                (Some(a), Some(b)) => (a - b).norm() * 1e3,
-                _ => f64::NAN,
-            };
             tracing::info!(
                 phase = d.phase.name(),
                 t_s = d.t_s,

@@ -195,24 +195,17 @@ pub fn object_poses_msg(now_s: f64, poses: &[(String, nalgebra::Isometry3<f64>)]
         transforms: poses
             .iter()
             .filter_map(|(name, pose)| {
-                let t = pose.translation.vector;
-                let q = pose.rotation;
-                let all = [t.x, t.y, t.z, q.i, q.j, q.k, q.w];
-                all.iter().all(|v| v.is_finite()).then(|| TransformStamped {
+                let p = teleop_hardware::wire::pose_msg(pose)?;
+                Some(TransformStamped {
                     header: Header::new(stamp, "world"),
                     child_frame_id: name.clone(),
                     transform: Transform {
                         translation: teleop_msgs::Vector3 {
-                            x: t.x,
-                            y: t.y,
-                            z: t.z,
+                            x: p.position.x,
+                            y: p.position.y,
+                            z: p.position.z,
                         },
-                        rotation: teleop_msgs::Quaternion {
-                            x: q.i,
-                            y: q.j,
-                            z: q.k,
-                            w: q.w,
-                        },
+                        rotation: p.orientation,
                     },
                 })
             })
