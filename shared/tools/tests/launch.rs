@@ -279,7 +279,9 @@ fn the_watching_operator_reaches_and_closes_on_the_can_through_the_shipped_nodes
         n(&op["grasp_attempts"]) >= 1,
         "it reached the grasp and closed: {op}"
     );
-    assert!(n(&op["submovements"]) >= 3, "{op}");
+    // At least one to the pre-grasp pose and one toward the grasp (the approach stops
+    // at its first move when the can is seen pushed).
+    assert!(n(&op["submovements"]) >= 2, "{op}");
     assert_eq!(n(&op["bad_input"]), 0, "{op}");
     assert_ne!(op["phase"], "waiting_for_view", "{op}");
     assert!(n(&json["clutch_engagements"]) >= 1, "{json}");
