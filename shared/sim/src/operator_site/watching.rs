@@ -760,7 +760,13 @@ impl WatchingOperator {
         if error.norm() <= tolerance_m {
             return Reach::Arrived;
         }
-        if self.corrections >= self.cfg.max_corrections {
+        if self.corrections > self.cfg.max_corrections {
+            // Given up on already (and said so): the caller is waiting for something
+            // else (a fresher view) before it goes on.
+            return Reach::Arrived;
+        }
+        if self.corrections == self.cfg.max_corrections {
+            self.corrections += 1;
             self.counters.goals_not_reached += 1;
             self.note(
                 t_s,
@@ -768,7 +774,7 @@ impl WatchingOperator {
                     "{} still {:.1} mm off after {} corrections; going on",
                     self.phase.name(),
                     error.norm() * 1e3,
-                    self.corrections
+                    self.cfg.max_corrections
                 ),
             );
             return Reach::Arrived;
@@ -1312,6 +1318,8 @@ mod tests {
         views: bool,
         can_follows: bool,
         hand_ref: Option<(Vector3<f64>, Vector3<f64>)>,
+        /// The arm ignores its commands (stuck at a limit, say): the palm stays.
+        arm_stuck: bool,
     }
 
     const TABLE_CAN_Z: f64 = 0.5;
@@ -1333,6 +1341,7 @@ mod tests {
                 views,
                 can_follows,
                 hand_ref: None,
+                arm_stuck: false,
             }
         }
 
@@ -1383,8 +1392,10 @@ mod tests {
                     .find(|(ht, ..)| *ht <= t - 0.15)
                     .copied();
                 if let Some((_, target, turn, closure)) = delayed {
-                    self.palm += (target - self.palm) * (dt / 0.1);
-                    self.turn = turn;
+                    if !self.arm_stuck {
+                        self.palm += (target - self.palm) * (dt / 0.1);
+                        self.turn = turn;
+                    }
                     self.flex += (closure.min(1.0) * 0.9 - self.flex) * (dt / 0.2);
                 }
                 // The can: held when the fingers are curled with the palm at the grasp.
@@ -1418,6 +1429,40 @@ mod tests {
             }
             log
         }
+    }
+
+    #[test]
+    fn a_goal_it_cannot_reach_is_given_up_once_and_said_once() {
+        // The arm never moves: every goal is given up after the corrections, and each
+        // only once (the operator used to count and log it again on every tick while it
+        // waited for a fresher view, 20 lines in one lift).
+        let mut lp = Loop::new(true, true);
+        lp.arm_stuck = true;
+        let log = lp.run(200.0);
+        assert_eq!(lp.op.phase(), Phase::GaveUp, "{log:#?}");
+        let given_up: Vec<&Decision> = log.iter().filter(|d| d.what.contains("still")).collect();
+        assert!(!given_up.is_empty(), "{log:#?}");
+        assert_eq!(
+            given_up.len() as u64,
+            lp.op.counters().goals_not_reached,
+            "{log:#?}"
+        );
+        for w in log.windows(2) {
+            assert!(
+                !(w[0].what.contains("still")
+                    && w[1].what.contains("still")
+                    && w[0].phase == w[1].phase),
+                "the same goal given up twice in a row: {:?} / {:?}",
+                w[0],
+                w[1]
+            );
+        }
+        let max = WatchingConfig::default().max_corrections;
+        let corrections = log.iter().filter(|d| d.what.contains("correction")).count();
+        assert!(
+            corrections as u64 <= u64::from(max) * (given_up.len() as u64 + 3),
+            "{log:#?}"
+        );
     }
 
     #[test]
