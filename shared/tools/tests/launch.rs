@@ -121,9 +121,21 @@ fn launch_runs_the_system_and_stops_it_gracefully_with_a_summary() {
     );
 }
 
-/// The shipped model's mean joint error on its offline test set (docs/hand-inference.md,
-/// baseline-60min, test: 0.0948 rad); the closed loop may be at most 1.2x that.
-const OFFLINE_TEST_MEAN_ERROR_RAD: f64 = 0.0948;
+/// The shipped model's mean joint error on its offline test set, read from the
+/// evaluation `hand_eval` wrote beside it (`local_site/models/hand/report.json`) the way
+/// the hand-inference node reads it; the closed loop may be at most 1.2x that.
+fn offline_test_mean_error_rad() -> f64 {
+    let model =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../local_site/models/hand/model.onnx");
+    match teleop_hand_inference::node::offline_test_error(&model) {
+        Ok(Some(e)) => e,
+        Ok(None) => panic!(
+            "no offline test error for {} in its report.json",
+            model.display()
+        ),
+        Err(e) => panic!("the model's offline evaluation: {e}"),
+    }
+}
 
 /// `--task` runs one task of the simulated operator and ends by itself when it is done,
 /// with the end-of-run report printed and written as JSON and PNG. The report's
@@ -446,15 +458,16 @@ fn task_meets_the_goals(
     // Hand inference: targets for (nearly) every frame, paired with the truth.
     assert!(f("finger_target_frames") > 0.8 * frames, "{task}: {json}");
     assert!(
-        nested("hand_joint_mean_error_rad", "mean") <= 1.2 * OFFLINE_TEST_MEAN_ERROR_RAD,
+        nested("hand_joint_mean_error_rad", "mean") <= 1.2 * offline_test_mean_error_rad(),
         "{task}: {json}"
     );
     // The report judges the goals itself, the hand's against the offline error the
     // hand-inference node read beside its model: every goal but the latency (measured,
     // not asserted) met.
+    // (The node reports it as a counter in micro-radians.)
     let offline = f("hand_offline_test_error_rad");
     assert!(
-        (offline - OFFLINE_TEST_MEAN_ERROR_RAD).abs() < 1e-4,
+        (offline - offline_test_mean_error_rad()).abs() <= 1e-6,
         "{task}: {json}"
     );
     let goals = json["goals"].as_array().expect("goals");
