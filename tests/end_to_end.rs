@@ -566,7 +566,9 @@ async fn the_operator_display_acknowledges_the_views_and_the_publisher_paces_by_
         assert!(received > 20, "{view}: {received} views shown");
         assert_eq!(d(&format!("display.view_{view}.refused")), 0);
         let age_us = d(&format!("display.view_{view}.age_us"));
-        assert!(age_us > 0 && age_us < 500_000, "{view}: {age_us} us");
+        // Measured from the views' stamps (how long they take is the benchmarks' and the
+        // end-of-run report's to say: tests assert behaviour, never timing).
+        assert!(age_us > 0, "{view}: {age_us} us");
     }
     assert_eq!(
         d("display.receipts_sent"),
@@ -585,7 +587,7 @@ async fn the_operator_display_acknowledges_the_views_and_the_publisher_paces_by_
     assert_eq!(f("feedback.camera_pacing.lost"), 0, "{sent:?}");
     assert!(f("feedback.camera_pacing.unmatched") >= 3, "{sent:?}");
     let rtt_us = f("feedback.camera_pacing.base_rtt_us");
-    assert!(rtt_us > 0 && rtt_us < 100_000, "{rtt_us} us");
+    assert!(rtt_us > 0, "the pacing measured a round trip: {rtt_us} us");
 }
 
 /// A page address already taken leaves the display running without its page: the

@@ -60,7 +60,9 @@ async fn typed_round_trip_with_metadata() {
     assert_eq!(got.msg, sent);
     assert_eq!(got.sequence, seq);
     assert_eq!(got.publisher_gid, publisher.gid());
-    assert!(got.latency_ns() >= 0 && got.latency_ns() < 1_000_000_000);
+    // From the source stamp on the same clock: never negative (how long it is, is
+    // bus_latency's to measure, docs/benchmarks.md).
+    assert!(got.latency_ns() >= 0);
     let stats = sub.stats();
     assert!(stats.accepted >= 2);
     assert_eq!(stats.rejected(), 0);

@@ -6,8 +6,6 @@
 
 mod common;
 
-use std::time::{Duration, Instant};
-
 use common::*;
 use proptest::collection::vec;
 use proptest::prelude::*;
@@ -294,9 +292,9 @@ proptest! {
         let w = at.index(words);
         let i = 4 + 4 * w;
         bytes[i..i + 4].copy_from_slice(&value.to_le_bytes());
-        let start = Instant::now();
+        // (How long refusing takes is benchmarked: `cargo bench --workspace --bench cdr`,
+        // joint_state_24_malformed, docs/benchmarks.md. Tests assert behaviour.)
         let r = decode::<JointState>(&bytes);
-        prop_assert!(start.elapsed() < Duration::from_millis(500));
         decode_consistent::<JointState>(&bytes)?;
         // A word that was a length field can no longer fit: refused before decoding.
         if let Ok(decoded) = r {
@@ -344,17 +342,11 @@ fn every_single_bit_flip_is_handled() {
             for bit in 0..8 {
                 let mut m = bytes.clone();
                 m[i] ^= 1 << bit;
-                let start = Instant::now();
                 match decode_named(name, &m) {
                     Ok(()) => decoded_ok += 1,
                     Err(CodecError::Wire { .. } | CodecError::Decode { .. }) => refused += 1,
                     Err(e) => panic!("{name} byte {i} bit {bit}: {e:?}"),
                 }
-                assert!(
-                    start.elapsed() < Duration::from_millis(500),
-                    "{name} byte {i} bit {bit} took {:?}",
-                    start.elapsed()
-                );
                 // The consistency checks (no amplification, stable re-encoding) too.
                 decode_as_every_type(&m).unwrap();
             }
@@ -379,11 +371,10 @@ fn expect_truncated<T: Message>(bytes: &[u8], field_path: &str) {
     expect_refused::<T>(bytes, field_path, false);
 }
 
-/// `decode` refuses `bytes` in the pre-check, quickly, naming `field_path`.
+/// `decode` refuses `bytes` in the pre-check, naming `field_path` (how long that takes is
+/// benchmarked: `cargo bench --workspace --bench cdr`, joint_state_24_malformed).
 fn expect_refused<T: Message>(bytes: &[u8], field_path: &str, allow_unterminated: bool) {
-    let start = Instant::now();
     let r = decode::<T>(bytes);
-    let took = start.elapsed();
     match r {
         Err(CodecError::Wire {
             type_name,
@@ -415,7 +406,6 @@ fn expect_refused<T: Message>(bytes: &[u8], field_path: &str, allow_unterminated
             T::TYPE_NAME
         ),
     }
-    assert!(took < Duration::from_millis(200), "{field_path}: {took:?}");
 }
 
 const HUGE: [u32; 4] = [u32::MAX, 0x8000_0000, 0x0010_0000, 0x0000_1000];
