@@ -8,7 +8,7 @@
 //! | motion capture (marker on the back of the hand, capture frame) | [`topics::HW_MOCAP_MARKER`] | 320 Hz, none while occluded |
 //! | pedal box and enable switch | [`topics::HW_PEDALS`] | 50 Hz |
 //! | UR5 state / velocity commands | [`UR5_ARM`] (`teleop/hw/ur5/...`) | every tick / from `camera_arm` only |
-//! | SR300 depth camera on the UR5 | [`topics::HAND_DEPTH`] | 30 Hz |
+//! | SR300 depth camera on the UR5 | [`topics::HW_HAND_DEPTH`] | 30 Hz |
 //!
 //! plus the simulation's ground truth for the end-of-run metrics:
 //! [`topics::SIM_OPERATOR_HAND_POSE`] (the true hand frame) and
@@ -380,7 +380,7 @@ impl LocalSimNode {
             marker_pub: bus.publisher(&topics::HW_MOCAP_MARKER).await?,
             pedals_pub: bus.publisher(&topics::HW_PEDALS).await?,
             depth_pub: if camera.enabled {
-                Some(bus.publisher(&topics::HAND_DEPTH).await?)
+                Some(bus.publisher(&topics::HW_HAND_DEPTH).await?)
             } else {
                 None
             },

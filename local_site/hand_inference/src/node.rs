@@ -1,7 +1,7 @@
 //! The `hand_inference` node (operator site): depth frames of the operator's hand in,
 //! the Shadow hand's 17 finger joint targets out.
 //!
-//! Per depth frame ([`topics::HAND_DEPTH`], newest only):
+//! Per depth frame ([`topics::HW_HAND_DEPTH`], newest only):
 //!
 //! 1. **Hand centre at the frame's capture time.** The camera arm publishes where the
 //!    camera's optical frame is ([`topics::CAMERA_POSE`], UR5 base frame, stamped with
@@ -867,7 +867,7 @@ impl<M: JointModel> HandInferenceNode<M> {
             height = intrinsics.height(),
             "hand inference: waiting for depth frames"
         );
-        let camera = BusCamera::monitor(bus, &topics::HAND_DEPTH, CameraKind::Depth).await?;
+        let camera = BusCamera::monitor(bus, &topics::HW_HAND_DEPTH, CameraKind::Depth).await?;
         let wake = Arc::new(tokio::sync::Notify::new());
         camera.wake_on_frame(Some(Arc::clone(&wake)));
         Ok(Self {
@@ -1086,7 +1086,7 @@ impl<M: JointModel> Node for HandInferenceNode<M> {
         } else if now_s - self.last_frame_s.unwrap_or(started) > self.no_hand_after_s {
             self.last_error = format!(
                 "no depth frame on {} for {:.1} s",
-                topics::HAND_DEPTH.spec.name,
+                topics::HW_HAND_DEPTH.spec.name,
                 now_s - self.last_frame_s.unwrap_or(started)
             );
         }

@@ -111,7 +111,10 @@ impl Rig {
         let rig_bus = Bus::open("rig", &b).await.expect("rig bus");
         let rig = Self {
             node,
-            depth: rig_bus.publisher(&topics::HAND_DEPTH).await.expect("depth"),
+            depth: rig_bus
+                .publisher(&topics::HW_HAND_DEPTH)
+                .await
+                .expect("depth"),
             camera_pose: rig_bus
                 .publisher(&topics::CAMERA_POSE)
                 .await

@@ -76,9 +76,9 @@ async fn a_six_joint_arm_over_the_bus_takes_commands_from_its_controller_only() 
 async fn a_camera_checks_its_images_kind() {
     let (a, b) = configs(32);
     let driver = Bus::open("camera_driver", &a).await.unwrap();
-    let publisher = driver.publisher(&topics::HAND_DEPTH).await.unwrap();
+    let publisher = driver.publisher(&topics::HW_HAND_DEPTH).await.unwrap();
     let reader = Bus::open("reader", &b).await.unwrap();
-    let mut depth = BusCamera::monitor(&reader, &topics::HAND_DEPTH, CameraKind::Depth)
+    let mut depth = BusCamera::monitor(&reader, &topics::HW_HAND_DEPTH, CameraKind::Depth)
         .await
         .unwrap();
     let image = |encoding: &str, bytes_per_px: u32| Image {

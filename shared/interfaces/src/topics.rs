@@ -295,7 +295,7 @@ pub const REMOTE_CAMERA_RECEIPTS: Topic<Header> = Topic::new(
 /// Depth image of the operator's hand from the camera on the UR5, as its driver (or the
 /// operator-site simulator standing in for it) publishes it: stamped with the capture
 /// time, so every later stage can measure its latency from the camera.
-pub const HAND_DEPTH: Topic<Image> = Topic::new(
+pub const HW_HAND_DEPTH: Topic<Image> = Topic::new(
     "teleop/hw/depth_camera/image",
     LocalInternal,
     30.0,
@@ -502,7 +502,7 @@ pub const ALL: &[TopicSpec] = &[
     REMOTE_CAMERA_TOP.spec,
     REMOTE_CAMERA_SIDE.spec,
     REMOTE_CAMERA_RECEIPTS.spec,
-    HAND_DEPTH.spec,
+    HW_HAND_DEPTH.spec,
     CAMERA_POSE.spec,
     UR5_JOINT_STATES.spec,
     NODE_STATUS.spec,

@@ -15,7 +15,7 @@
 //!    typed layer, no application thread.
 //! 3. `udp wrist pose`: raw UDP datagrams of the same size as (1) on the wire
 //!    (CDR-encoded `PoseStamped` + the 33-byte rmw_zenoh attachment).
-//! 4. `zenoh depth image`: 640x480 `16UC1` `Image` pings on [`topics::HAND_DEPTH`], echoed on
+//! 4. `zenoh depth image`: 640x480 `16UC1` `Image` pings on [`topics::HW_HAND_DEPTH`], echoed on
 //!    a bench topic with the same QoS (image: data-low priority, drop, depth 1).
 //! 5. `tcp depth image`: the same number of bytes, length-prefixed, over a raw
 //!    `TcpStream` (`TCP_NODELAY`). UDP cannot carry a 614 KB datagram (64 KB limit), so
@@ -68,10 +68,10 @@ const POSE_PONG: Topic<PoseStamped> = topics::WRIST_POSE.renamed(
     "benchmark echo of wrist poses",
 );
 /// Pings of case 3: the real hand depth topic.
-const IMAGE_PING: Topic<Image> = topics::HAND_DEPTH;
+const IMAGE_PING: Topic<Image> = topics::HW_HAND_DEPTH;
 /// Echoes of case 3: a bench topic with the depth image's type and QoS.
 const IMAGE_PONG: Topic<Image> =
-    topics::HAND_DEPTH.renamed("teleop/bench/depth_echo", "benchmark echo of depth images");
+    topics::HW_HAND_DEPTH.renamed("teleop/bench/depth_echo", "benchmark echo of depth images");
 
 /// The driver sleeps until this long before a tick, then spins.
 const SPIN: Duration = Duration::from_micros(100);
