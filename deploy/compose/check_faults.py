@@ -7,10 +7,17 @@ was gone, and it reconnected within 1 s of running again (a router: 1.5 s).
 KILL_S and KILLED_S: when the kill was issued and when the engine said it was done;
 START_S and RUNNING_S the same for the start (s since the epoch).
 
-Prints what it measured; exits 1 on a miss."""
+Prints what it measured; exits 1 on a miss.
+
+    check_faults.py --wait-moving RECORDING WITHIN_S ABOVE_RAD_S
+
+waits (at most WITHIN_S) until the growing recording shows a joint faster than
+ABOVE_RAD_S over its newest window; exits 1 if it never does."""
 
 import json
+import os
 import sys
+import time
 from pathlib import Path
 
 RECONNECT_WITHIN_S = 1.0
@@ -144,7 +151,29 @@ def window_speeds(states):
     return out
 
 
+def wait_moving(path, within_s, above_rad_s):
+    """Until `within_s` has passed: whether the recording at `path`, as it grows, shows
+    some joint faster than `above_rad_s` over its newest full window (the kill's
+    trigger, check_faults.sh)."""
+    deadline = time.time() + within_s
+    while time.time() < deadline:
+        try:
+            with open(path, "rb") as f:
+                f.seek(max(0, os.path.getsize(path) - 16384))
+                rows = [json.loads(l) for l in f.read().splitlines()[1:]]
+            speeds = window_speeds(rows)
+            if speeds and speeds[-1][1] > above_rad_s:
+                return True
+        except (OSError, ValueError, KeyError):
+            pass
+        time.sleep(0.05)
+    return False
+
+
 def main():
+    if sys.argv[1] == "--wait-moving":
+        # check_faults.py --wait-moving RECORDING WITHIN_S ABOVE_RAD_S
+        return 0 if wait_moving(sys.argv[2], float(sys.argv[3]), float(sys.argv[4])) else 1
     d, tag, service = Path(sys.argv[1]), sys.argv[2], sys.argv[3]
     kill, killed, start, running = (float(x) for x in sys.argv[4:8])
     others_down = sys.argv[8].split() if len(sys.argv) > 8 else []

@@ -40,6 +40,10 @@ for s in "${SERVICES[@]}"; do
   # task (the arm waited for a fresh clutch press once, right after the WAN sweep: a CI
   # run here, 2026-12-06), the task starts over, at most three times in all, the tries
   # counted in the log; after the third the kill comes anyway and the check says why.
+  # The container by id (the docker client, not Compose v1's second of CPU), killed and
+  # started with the engine's own commands: they take milliseconds where Compose v1
+  # takes about a second, so the times below are sharp. A restart keeps the id.
+  id=$(service_id "$s")
   for try in 1 2 3; do
     rm -f "$OUT/$tag"-*.jsonl
     ids=$(listen remote "$tag-r" 32 /teleop/status /teleop/hw/pr2_arm/state /teleop/hw/shadow_hand/state /teleop/wrist_pose
@@ -47,32 +51,10 @@ for s in "${SERVICES[@]}"; do
     sleep 1.5
     # The task from its start: the operator presses the clutch 2 s in.
     compose restart -t 5 pc3-local-sim >/dev/null 2>&1
-    # The container by id, killed and started with the engine's own commands: they take
-    # milliseconds where Compose v1 takes about a second, so the times below are sharp.
-    id=$(compose ps -q "$s")
     # The kill comes while the PR2 moves (some joint faster than 0.05 rad/s over the
-    # robot LAN listener's newest 0.1 s, by position: the velocity a sample reports
-    # carries contact chatter on MuJoCo, check_faults.py), at most 14 s into the task.
-    if python3 - "$OUT/$tag-r-pr2_arm-state.jsonl" <<'WAIT'
-import json, os, sys, time
-path, deadline = sys.argv[1], time.time() + 14
-def stamp(s):
-    return s["header"]["stamp"]["sec"] + s["header"]["stamp"]["nanosec"] * 1e-9
-while time.time() < deadline:
-    try:
-        with open(path, "rb") as f:
-            f.seek(max(0, os.path.getsize(path) - 16384))
-            rows = [json.loads(l) for l in f.read().splitlines()[1:]]
-        last = rows[-1]
-        first = next(r for r in reversed(rows) if stamp(r) <= stamp(last) - 0.1)
-        dt = stamp(last) - stamp(first)
-        if max(abs(a - b) for a, b in zip(last["position"], first["position"])) / dt > 0.05:
-            sys.exit(0)
-    except (OSError, IndexError, ValueError, KeyError, StopIteration, ZeroDivisionError):
-        pass
-    time.sleep(0.05)
-sys.exit(1)
-WAIT
+    # robot LAN listener's newest 0.1 s window, by position: the velocity a sample
+    # reports carries contact chatter on MuJoCo, check_faults.py), at most 14 s in.
+    if python3 "$HERE/check_faults.py" --wait-moving "$OUT/$tag-r-pr2_arm-state.jsonl" 14 0.05
     then
       break
     fi

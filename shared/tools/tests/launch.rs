@@ -125,8 +125,9 @@ fn launch_runs_the_system_and_stops_it_gracefully_with_a_summary() {
 /// evaluation `hand_eval` wrote beside it (`local_site/models/hand/report.json`) the way
 /// the hand-inference node reads it; the closed loop may be at most 1.2x that.
 fn offline_test_mean_error_rad() -> f64 {
-    let model =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../local_site/models/hand/model.onnx");
+    let model = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .join(teleop_hand_inference::node::DEFAULT_MODEL);
     match teleop_hand_inference::node::offline_test_error(&model) {
         Ok(Some(e)) => e,
         Ok(None) => panic!(
@@ -456,9 +457,10 @@ fn task_meets_the_goals(
         "{task}: {json}"
     );
     // Hand inference: targets for (nearly) every frame, paired with the truth.
+    let offline_expected = offline_test_mean_error_rad();
     assert!(f("finger_target_frames") > 0.8 * frames, "{task}: {json}");
     assert!(
-        nested("hand_joint_mean_error_rad", "mean") <= 1.2 * offline_test_mean_error_rad(),
+        nested("hand_joint_mean_error_rad", "mean") <= 1.2 * offline_expected,
         "{task}: {json}"
     );
     // The report judges the goals itself, the hand's against the offline error the
@@ -466,10 +468,7 @@ fn task_meets_the_goals(
     // not asserted) met.
     // (The node reports it as a counter in micro-radians.)
     let offline = f("hand_offline_test_error_rad");
-    assert!(
-        (offline - offline_test_mean_error_rad()).abs() <= 1e-6,
-        "{task}: {json}"
-    );
+    assert!((offline - offline_expected).abs() <= 1e-6, "{task}: {json}");
     let goals = json["goals"].as_array().expect("goals");
     assert_eq!(goals.len(), 5, "{task}: {json}");
     for g in &goals[..4] {
