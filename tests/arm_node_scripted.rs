@@ -60,7 +60,7 @@ impl Script {
     /// working posture, a wrist pose at `pose_x`, the pedals).
     fn period(&self, pose_x: Option<f64>, input: bool, clutch: bool) {
         let t = self.clock.now_s();
-        let stamp = Time::from_nanos((t * 1e9) as i64);
+        let stamp = Time::from_secs_f64(t);
         self.state_pub
             .put(&wire::arm_state_msg(
                 &PR2_ARM_JOINTS,

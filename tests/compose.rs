@@ -287,13 +287,25 @@ fn the_image_scripts_ship_every_binary_of_the_node_table() {
     }
 }
 
+/// What the arm reports after the cut's stop in [`judge_cut`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum AfterStop {
+    /// Stopped to the end (no clutch release reached it).
+    Stays,
+    /// The clutch released at 13 s (its latch cleared), pressed again, engaged at 13.6 s.
+    PressedAgain,
+    /// Active again at 13 s without a release of the clutch.
+    ResumesByItself,
+}
+
 /// One recorded cut for `deploy/compose/check_partition.py`: wrist poses at 100 Hz
 /// from 0 s, silent from 10 s to 12 s; the arm's status reports (Active from 2 s when
 /// `following`, else stopped on a stale wrist pose at 9 s) and its stop report
-/// `stop_after_s` after the last pose. Returns the script's exit code and output.
-fn judge_cut(following: bool, stop_after_s: f64) -> (i32, String) {
+/// `stop_after_s` after the last pose, then `after`. Returns the script's exit code
+/// and output.
+fn judge_cut(following: bool, stop_after_s: f64, after: AfterStop) -> (i32, String) {
     let dir = std::env::temp_dir().join(format!(
-        "teleop-cut-{}-{following}-{}",
+        "teleop-cut-{}-{following}-{}-{after:?}",
         std::process::id(),
         (stop_after_s * 1e3) as u64
     ));
@@ -306,23 +318,35 @@ fn judge_cut(following: bool, stop_after_s: f64) -> (i32, String) {
         ));
     }
     let last = 9.99;
-    let names = ["arm.engagements", "arm.stop.stale_wrist_pose"];
-    let status = |t: f64, state: u8, stale: u32| {
+    let names = [
+        "arm.engagements",
+        "arm.stop.stale_wrist_pose",
+        "arm.stop.clutch_released",
+    ];
+    // A report at `t`: lifecycle state, engagements, stale stops, clutch releases.
+    let status = |t: f64, state: u8, engaged: u32, stale: u32, released: u32| {
         serde_json::json!({
             "node_name": "pr2_arm_controller", "lifecycle_state": state,
-            "counter_names": names, "counter_values": [1, stale], "_meta": {"sent_s": t},
+            "counter_names": names, "counter_values": [engaged, stale, released],
+            "_meta": {"sent_s": t},
         })
         .to_string()
             + "\n"
     };
-    let mut reports = status(1.0, 1, 0) + &status(2.0, 2, 0);
+    let mut reports = status(1.0, 1, 0, 0, 1) + &status(2.0, 2, 1, 0, 1);
     reports += &if following {
-        status(last - 0.5, 2, 0)
+        status(last - 0.5, 2, 1, 0, 1)
     } else {
-        status(9.0, 1, 1)
+        status(9.0, 3, 1, 1, 1)
     };
-    reports += &status(last + stop_after_s, 1, 1);
-    reports += &status(14.0, 1, 1);
+    reports += &status(last + stop_after_s, 3, 1, 1, 1);
+    reports += &match after {
+        AfterStop::Stays => status(14.0, 3, 1, 1, 1),
+        AfterStop::PressedAgain => {
+            status(13.0, 1, 1, 1, 2) + &status(13.6, 2, 2, 1, 2) + &status(14.0, 2, 2, 1, 2)
+        }
+        AfterStop::ResumesByItself => status(13.0, 2, 2, 1, 1) + &status(14.0, 2, 2, 1, 1),
+    };
     std::fs::write(dir.join("wrist.jsonl"), wrist).unwrap();
     std::fs::write(dir.join("status.jsonl"), reports).unwrap();
     let python = std::env::var("TELEOP_PYTHON").unwrap_or_else(|_| "python3".into());
@@ -340,20 +364,44 @@ fn judge_cut(following: bool, stop_after_s: f64) -> (i32, String) {
 
 /// The compose test's check of a cut passes a stop within the bound, fails a late one,
 /// and refuses to judge (exit 2: the test runs the cut again) when the arm had stopped
-/// on its own before the cut, saying why.
+/// on its own before the cut, saying why; after the stop, the arm may follow again only
+/// once a fresh clutch press reached it.
 #[test]
 fn the_cut_check_judges_a_following_arm_and_explains_one_that_was_not() {
-    let (code, text) = judge_cut(true, 0.15);
+    let (code, text) = judge_cut(true, 0.15, AfterStop::Stays);
     assert_eq!(code, 0, "{text}");
     assert!(
         text.contains("stopped 150 ms after the last valid wrist pose"),
         "{text}"
     );
-    let (code, text) = judge_cut(true, 0.40);
+    assert!(
+        text.contains("no fresh clutch press reached the arm"),
+        "{text}"
+    );
+    let (code, text) = judge_cut(true, 0.40, AfterStop::Stays);
     assert_eq!(code, 1, "{text}");
     assert!(text.contains("BAD stopped 400 ms"), "{text}");
-    let (code, text) = judge_cut(false, 0.15);
+    let (code, text) = judge_cut(false, 0.15, AfterStop::Stays);
     assert_eq!(code, 2, "{text}");
     assert!(text.contains("the arm was not Active"), "{text}");
     assert!(text.contains("'arm.stop.stale_wrist_pose': 1"), "{text}");
+    // The operator let go of the clutch and pressed it again: following after that is
+    // the operator's doing.
+    let (code, text) = judge_cut(true, 0.15, AfterStop::PressedAgain);
+    assert_eq!(code, 0, "{text}");
+    assert!(
+        text.contains("the clutch was released 2.86 s after the stop"),
+        "{text}"
+    );
+    // Following again with no release of the clutch: the stale commands moved it.
+    let (code, text) = judge_cut(true, 0.15, AfterStop::ResumesByItself);
+    assert_eq!(code, 1, "{text}");
+    assert!(
+        text.contains("BAD stayed stopped until a fresh clutch press (2 Active reports"),
+        "{text}"
+    );
+    assert!(
+        text.contains("BAD no new engagement before a fresh clutch press (arm.engagements 1 -> 2)"),
+        "{text}"
+    );
 }

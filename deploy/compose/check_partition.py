@@ -4,7 +4,10 @@ site's LAN recorded (`teleop topic echo --format json` of /teleop/wrist_pose and
 /teleop/status): the PR2 arm controller stopped within 100 ms of the deadline of the
 last valid wrist pose it could have had before the cut, it refused the stale commands
 the link released when it returned (for a partition: `--released-late`), and it stayed
-stopped afterwards (no fresh clutch press came).
+stopped until a fresh clutch press reached it: no Active report and no new engagement
+before a report whose `arm.stop.clutch_released` rose. (The simulated operator lets go
+of the pedal and presses it again when the display shows the arm's Fault, as a person
+would: teleop_sim::operator_site::reclutch; the arm may follow again after that.)
 
     check_partition.py WRIST.jsonl STATUS.jsonl CUT_S RESTORED_S [--released-late]
 
@@ -92,13 +95,29 @@ def main(wrist_path, status_path, partition_on_s, partition_off_s, released_late
     check(late <= STOP_WITHIN_S,
           f"stopped {1e3 * (stop - last):.0f} ms after the last valid wrist pose, "
           f"{1e3 * late:.0f} ms after its deadline (bound {1e3 * STOP_WITHIN_S:.0f} ms)")
-    resumed = [s for s in arm if s["_meta"]["sent_s"] > stop and s["lifecycle_state"] == ACTIVE]
-    check(not resumed, f"stayed stopped after the commands returned ({len(resumed)} Active reports; "
-          f"the last report {arm[-1]['_meta']['sent_s'] - back:.1f} s after the poses came back)")
+    # A fresh clutch press: the first report after the stop in which the arm counted a
+    # release of the clutch (the release clears its latch; the press that follows may
+    # engage it again).
+    released_at_stop = counter(stops[0], "arm.stop.clutch_released") or 0
+    release = next((s for s in arm if s["_meta"]["sent_s"] > stop
+                    and (counter(s, "arm.stop.clutch_released") or 0) > released_at_stop), None)
+    until = release["_meta"]["sent_s"] if release else float("inf")
+    before = [s for s in arm if stop < s["_meta"]["sent_s"] < until]
+    resumed = [s for s in before if s["lifecycle_state"] == ACTIVE]
+    check(not resumed, f"stayed stopped until a fresh clutch press ({len(resumed)} Active reports "
+          f"before it; the last report {arm[-1]['_meta']['sent_s'] - back:.1f} s after the poses "
+          "came back)")
     engaged_at_cut = counter(at_cut[-1], "arm.engagements")
-    engaged_end = counter(arm[-1], "arm.engagements")
-    check(engaged_end == engaged_at_cut,
-          f"no new engagement after the cut (arm.engagements {engaged_at_cut} -> {engaged_end})")
+    engaged_before = counter(before[-1] if before else stops[0], "arm.engagements")
+    check(engaged_before == engaged_at_cut,
+          f"no new engagement before a fresh clutch press (arm.engagements {engaged_at_cut} -> "
+          f"{engaged_before})")
+    if release:
+        engaged_end = counter(arm[-1], "arm.engagements")
+        print(f"  the clutch was released {release['_meta']['sent_s'] - stop:.2f} s after the stop"
+              f" and pressed again; arm.engagements at the end {engaged_end}")
+    else:
+        print("  no fresh clutch press reached the arm")
     stale_at_cut = counter(at_cut[-1], "wrist_pose.rejected_stale") or 0
     stale_end = counter(arm[-1], "wrist_pose.rejected_stale") or 0
     if released_late:

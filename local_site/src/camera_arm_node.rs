@@ -63,9 +63,9 @@ pub struct CameraArmNodeConfig {
     pub commander: CommanderConfig,
     /// The control core (its `rate_hz` is the node's rate).
     pub camera_arm: CameraArmConfig,
-    /// The Zenoh session.
     /// The process's scheduling (normal, or real-time FIFO at a priority).
     pub scheduling: SchedulingConfig,
+    /// The Zenoh session.
     pub bus: BusConfig,
 }
 
@@ -101,14 +101,6 @@ impl NodeConfig for CameraArmNodeConfig {
 }
 
 pub use teleop_hardware::wire::{isometry, pose_msg};
-
-/// Seconds since the epoch as a message time, rounded to the nanosecond (so a time read
-/// from a message's stamp maps back onto the same stamp).
-pub fn stamp(time_s: f64) -> Time {
-    // Node and hardware times are seconds since the epoch: far inside the i64 ns range.
-    #[allow(clippy::cast_possible_truncation)]
-    Time::from_nanos((time_s * 1e9).round() as i64)
-}
 
 /// The camera arm controller core for the UR5 camera chain (nominal model) and its
 /// collision bodies.
@@ -209,7 +201,7 @@ impl CameraArmNode {
         self.published_state_s = state.time_s;
         let mut joints = wire::arm_state_msg(&UR5_ARM.joints, state);
         // The same stamp as the camera pose's, to the nanosecond.
-        joints.header.stamp = stamp(state.time_s);
+        joints.header.stamp = Time::from_secs_f64(state.time_s);
         match self.joint_states_pub.put(&joints) {
             Ok(()) => self.joint_states_published += 1,
             Err(e) => {
@@ -225,7 +217,7 @@ impl CameraArmNode {
             return;
         };
         let msg = PoseStamped {
-            header: Header::new(stamp(state.time_s), CAMERA_POSE_FRAME),
+            header: Header::new(Time::from_secs_f64(state.time_s), CAMERA_POSE_FRAME),
             pose,
         };
         match self.camera_pose_pub.put(&msg) {

@@ -32,20 +32,20 @@ use teleop_bus::{Bus, BusConfig, Publisher, Subscriber};
 use teleop_hardware::safety::{ArmSafety, ArmSafetyConfig};
 use teleop_hardware::{ArmCommand, ArmHardware, SafeArm};
 use teleop_hardware_bus::ArmEndpoint;
-use teleop_interfaces::hardware::UR5_ARM;
+use teleop_interfaces::hardware::{PR2_ARM, UR5_ARM};
 use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 use teleop_interfaces::topics;
 use teleop_msgs::{
-    CompressedImage, Header, Image, JointState, Lifecycle, OperatorInput, PoseStamped, TFMessage,
-    Time,
+    CompressedImage, Header, Image, JointState, Lifecycle, NodeStatus, OperatorInput, PoseStamped,
+    TFMessage, Time,
 };
 use teleop_node::{FinalReport, Node, NodeConfig, Periodic, SchedulingConfig};
 use teleop_sim::operator_site::watching::{
     Phase, RobotEye, ScenePercept, ViewGate, WatchingCounters,
 };
 use teleop_sim::operator_site::{
-    MocapReading, OperatorModel, OperatorSiteConfig, OperatorWorld, SharedOperatorWorld, SimUr5,
-    UR5_DOF, WatchingOperator,
+    MocapReading, OperatorModel, OperatorSiteConfig, OperatorWorld, Reclutch, SharedOperatorWorld,
+    SimUr5, UR5_DOF, WatchingOperator,
 };
 
 use crate::wrist_tracker::pose_msg;
@@ -171,6 +171,10 @@ pub struct LocalSimNode {
     last_error: String,
     /// The operator who watches the display (`operator = "watching"`).
     watcher: Option<Watcher>,
+    /// Either operator's foot on the clutch after a safety stop of the arm, and the
+    /// arm controller's status as it arrives here (what the display shows).
+    reclutch: Reclutch,
+    statuses: Subscriber<NodeStatus>,
 }
 
 /// The watching operator and what it watches: the feedback joint states, the camera
@@ -349,12 +353,6 @@ impl std::fmt::Debug for LocalSimNode {
     }
 }
 
-fn stamp(now_s: f64) -> Time {
-    // Seconds since the epoch: far inside the i64 ns range.
-    #[allow(clippy::cast_possible_truncation)]
-    Time::from_nanos((now_s * 1e9) as i64)
-}
-
 impl LocalSimNode {
     /// Builds the world and declares the devices on `bus`.
     ///
@@ -395,6 +393,9 @@ impl LocalSimNode {
             last_render_us: 0,
             last_error: String::new(),
             watcher,
+            reclutch: Reclutch::new(cfg.operator_site.reclutch.clone())
+                .map_err(anyhow::Error::msg)?,
+            statuses: bus.subscriber(&topics::NODE_STATUS).await?,
         })
     }
 
@@ -415,7 +416,7 @@ impl LocalSimNode {
 
     fn pose_stamped(now_s: f64, frame: &str, pose: &Isometry3<f64>) -> Option<PoseStamped> {
         pose_msg(pose).map(|pose| PoseStamped {
-            header: Header::new(stamp(now_s), frame),
+            header: Header::new(Time::from_secs_f64(now_s), frame),
             pose,
         })
     }
@@ -429,7 +430,7 @@ impl LocalSimNode {
         let k = world.intrinsics();
         let depth = world.render_depth()?;
         let image = Image::depth_mm(
-            Header::new(stamp(now_s), "camera_optical_frame"),
+            Header::new(Time::from_secs_f64(now_s), "camera_optical_frame"),
             k.width(),
             k.height(),
             depth,
@@ -444,7 +445,7 @@ impl LocalSimNode {
         let joints = world.shadow_joints()?;
         self.truth_joints_pub.put_at(
             &JointState::positions(
-                Header::new(stamp(now_s), ""),
+                Header::new(Time::from_secs_f64(now_s), ""),
                 &SHADOW_FINGER_JOINTS,
                 &joints,
             ),
@@ -530,11 +531,29 @@ impl Node for LocalSimNode {
         if let Err(e) = self.ur5_endpoint.publish_state(&state) {
             self.fail("ur5 state", e);
         }
+        // The arm controller's status as the display shows it: a safety stop is
+        // answered by letting go of the clutch and pressing it again.
+        while let Some(r) = self.statuses.try_recv() {
+            if r.msg.node_name == PR2_ARM.controller_node {
+                let faulted = r.msg.lifecycle() == Some(Lifecycle::Fault);
+                self.reclutch.arm_report(r.receive_time_s(), faulted);
+            }
+        }
+        let intended = world.pedals();
+        let releasing = self.reclutch.releasing();
+        let clutch = self.reclutch.pedal(now_s, intended.clutch);
+        if self.reclutch.releasing() && !releasing {
+            tracing::info!(
+                reclutches = self.reclutch.counts().reclutches,
+                "operator: the display shows the arm stopped (its controller in Fault); \
+                 letting go of the clutch to press it again"
+            );
+        }
         if self.pedals_due.due(now_s) {
-            let p = world.pedals();
+            let p = intended;
             let msg = OperatorInput {
-                header: Header::new(stamp(now_s), ""),
-                clutch: p.clutch,
+                header: Header::new(Time::from_secs_f64(now_s), ""),
+                clutch,
                 enable: p.enable,
                 camera_stop: p.camera_stop,
                 motion_scale: p.motion_scale,
@@ -599,6 +618,9 @@ impl Node for LocalSimNode {
         if let Some(w) = &self.watcher {
             out.extend(w.counters());
         }
+        let r = self.reclutch.counts();
+        out.push(("operator.reclutches".to_owned(), r.reclutches));
+        out.push(("operator.reclutch_gave_up".to_owned(), r.gave_up));
         out.extend(self.ur5_endpoint.counters());
         out.extend(self.ur5.safety().counters().named("safety.ur5"));
         out

@@ -104,9 +104,9 @@ pub struct WristTrackerConfig {
     /// The simulated operator: the pedals when `panel` is `simulated`, the wrist
     /// poses when `source` is `simulated`.
     pub operator: SimulatedOperatorConfig,
-    /// The bus.
     /// The process's scheduling (normal, or real-time FIFO at a priority).
     pub scheduling: SchedulingConfig,
+    /// The bus.
     pub bus: BusConfig,
 }
 
@@ -658,7 +658,7 @@ impl PoseDevice {
             }),
             Self::Other(t) => t.read(now_s)?.map(|p| Sample {
                 tracker_from_marker: p,
-                stamp: stamp(now_s),
+                stamp: Time::from_secs_f64(now_s),
                 t_s: now_s,
             }),
         })
@@ -965,7 +965,7 @@ impl WristTrackerNode {
                     tracing::info!("pedals back after: {e}");
                 }
                 let msg = OperatorInput {
-                    header: Header::new(stamp(now_s), ""),
+                    header: Header::new(Time::from_secs_f64(now_s), ""),
                     clutch: s.clutch,
                     enable: s.enable,
                     camera_stop: s.camera_stop,
@@ -989,12 +989,6 @@ impl WristTrackerNode {
             }
         }
     }
-}
-
-fn stamp(now_s: f64) -> Time {
-    // Seconds since the epoch: far inside the i64 ns range.
-    #[allow(clippy::cast_possible_truncation)]
-    Time::from_nanos((now_s * 1e9) as i64)
 }
 
 impl Node for WristTrackerNode {

@@ -238,7 +238,18 @@ impl Node for ArmNode {
         let command = match self.hw.read(now_s) {
             Ok(state) => {
                 self.hardware_ok = true;
-                self.ctrl.step(now_s, &inputs, &state).command
+                let latched = self.ctrl.latched();
+                let command = self.ctrl.step(now_s, &inputs, &state).command;
+                // What the operator's display shows next to the Fault state.
+                if let Some(r) = self.ctrl.latched()
+                    && latched != Some(r)
+                {
+                    self.last_error = format!(
+                        "safety stop ({}): release the clutch and press it again to go on",
+                        r.name()
+                    );
+                }
+                command
             }
             Err(e) => {
                 self.hardware_ok = false;

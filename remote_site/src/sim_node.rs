@@ -188,9 +188,7 @@ impl NodeConfig for SimNodeConfig {
 /// `now_s`. Objects with a non-finite pose are left out.
 #[must_use]
 pub fn object_poses_msg(now_s: f64, poses: &[(String, nalgebra::Isometry3<f64>)]) -> TFMessage {
-    // Seconds since the epoch: far inside the i64 ns range.
-    #[allow(clippy::cast_possible_truncation)]
-    let stamp = teleop_msgs::Time::from_nanos((now_s * 1e9) as i64);
+    let stamp = teleop_msgs::Time::from_secs_f64(now_s);
     TFMessage {
         transforms: poses
             .iter()
@@ -553,9 +551,7 @@ impl CameraViews {
     /// Renders both views and publishes them, stamped `now_s` (node clock).
     fn render(&mut self, world: &dyn RobotWorld, now_s: f64) -> anyhow::Result<()> {
         self.cameras.render(world)?;
-        // Seconds since the epoch: far inside the i64 ns range.
-        #[allow(clippy::cast_possible_truncation)]
-        let stamp = teleop_msgs::Time::from_nanos((now_s * 1e9) as i64);
+        let stamp = teleop_msgs::Time::from_secs_f64(now_s);
         for ((view, publisher), image) in View::ALL
             .into_iter()
             .zip(&self.publishers)

@@ -176,9 +176,9 @@ pub struct HandInferenceConfig {
     pub image_fallback: bool,
     /// The image fallback's segmentation.
     pub image_centre: ImageCentreConfig,
-    /// The node's bus settings.
     /// The process's scheduling (normal, or real-time FIFO at a priority).
     pub scheduling: SchedulingConfig,
+    /// The node's bus settings.
     pub bus: BusConfig,
 }
 

@@ -10,7 +10,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::{Isometry3, SVector, Translation3, UnitQuaternion};
 use teleop_control::{
     CartesianLimiter, CartesianLimits, JointLimiterConfig, JointLimits, JointVelocityLimiter,
-    JumpFilter, JumpFilterConfig, VelocityLimitStrategy, Watchdog, WatchdogConfig, WatchdogEvent,
+    JumpFilter, JumpFilterConfig, VelocityLimitStrategy,
 };
 
 const DT: f64 = 1.0 / 30.0;
@@ -101,19 +101,5 @@ fn joints(c: &mut Criterion) {
     g.finish();
 }
 
-fn watchdog(c: &mut Criterion) {
-    let mut w = Watchdog::new(WatchdogConfig::default()).expect("config");
-    let mut t = 0.0;
-    let mut g = c.benchmark_group("watchdog");
-    g.bench_function("feed_check", |b| {
-        b.iter(|| {
-            t += DT;
-            w.feed(black_box(t), WatchdogEvent::ValidCommand);
-            black_box(w.check(black_box(t + 0.05)))
-        })
-    });
-    g.finish();
-}
-
-criterion_group!(benches, jump, cartesian, joints, watchdog);
+criterion_group!(benches, jump, cartesian, joints);
 criterion_main!(benches);

@@ -10,7 +10,7 @@ pub use error::{Axis, ConfigError, Rejection, RejectionCounts, RejectionKind};
 pub use filters::{
     CartesianLimiter, CartesianLimits, InterventionCounts, JointLimiterConfig, JointLimits,
     JointVelocityLimiter, JumpFilter, JumpFilterConfig, UR5_MAX_JOINT_VELOCITY_RAD_S,
-    VelocityLimitStrategy, Watchdog, WatchdogConfig, WatchdogEvent, WatchdogState,
+    VelocityLimitStrategy,
 };
 pub use gate::{Closed, GateMode, OperatorGate, OperatorSample};
 

@@ -5,8 +5,7 @@ use nalgebra::{Isometry3, SVector, Translation3, UnitQuaternion, Vector3};
 use proptest::prelude::*;
 use teleop_control::{
     CartesianLimiter, CartesianLimits, JointLimiterConfig, JointLimits, JointVelocityLimiter,
-    JumpFilter, JumpFilterConfig, Rejection, VelocityLimitStrategy, Watchdog, WatchdogConfig,
-    WatchdogEvent, WatchdogState,
+    JumpFilter, JumpFilterConfig, Rejection, VelocityLimitStrategy,
 };
 
 /// Absolute slack for comparing measured rates with limits (rounding only).
@@ -371,36 +370,5 @@ proptest! {
         let q = UnitQuaternion::from_scaled_axis(axis.normalize() * angle);
         let (r, p, y) = q.euler_angles();
         prop_assert!(r.abs() <= angle + 1e-9 && p.abs() <= angle + 1e-9 && y.abs() <= angle + 1e-9);
-    }
-
-    #[test]
-    fn watchdog_matches_a_model(
-        events in proptest::collection::vec((0.0..0.2f64, 0u8..3, 0.0..0.2f64), 1..80),
-        deadline_s in 0.01..0.3f64,
-    ) {
-        let mut w = Watchdog::new(WatchdogConfig { deadline_s }).unwrap();
-        let mut now = 0.0;
-        let mut last_valid: Option<f64> = None;
-        for (gap, kind, probe) in events {
-            now += gap;
-            let event = match kind {
-                0 => WatchdogEvent::ValidCommand,
-                1 => WatchdogEvent::RejectedCommand,
-                _ => WatchdogEvent::Disarm,
-            };
-            w.feed(now, event);
-            match event {
-                WatchdogEvent::ValidCommand => last_valid = Some(now),
-                WatchdogEvent::Disarm => last_valid = None,
-                WatchdogEvent::RejectedCommand => {}
-            }
-            let t = now + probe;
-            let expected = match last_valid {
-                None => WatchdogState::NeverFed,
-                Some(v) if t - v <= deadline_s => WatchdogState::Ok,
-                Some(v) => WatchdogState::Expired { since_s: t - v },
-            };
-            prop_assert_eq!(w.check(t), expected);
-        }
     }
 }

@@ -115,9 +115,7 @@ fn names<const N: usize>(joints: &[&str; N]) -> Vec<String> {
 }
 
 fn stamp(time_s: f64) -> Header {
-    // Hardware times are seconds since the epoch: far inside the i64 ns range.
-    #[allow(clippy::cast_possible_truncation)]
-    Header::new(Time::from_nanos((time_s * 1e9) as i64), "")
+    Header::new(Time::from_secs_f64(time_s), "")
 }
 
 /// A pose message as an isometry, the quaternion taken as sent (not normalized): the

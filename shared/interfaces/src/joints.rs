@@ -3,7 +3,8 @@
 //! these arrays; messages from elsewhere are matched by name.
 //!
 //! The names are those of the URDFs in `shared/kinematics/urdf/`; a test
-//! (`tests/interfaces.rs`) checks every name against the models.
+//! (`shared/kinematics/tests/descriptions.rs`, `interface_tables_match_the_models`)
+//! checks every name against the models.
 
 /// The 7 joints of the PR2 arm chain the arm controller drives: the PR2 right arm's 5
 /// joints, then the Shadow hand's 2 wrist joints (the hand replaces the PR2 wrist

@@ -49,6 +49,14 @@ impl Time {
             nanosec,
         }
     }
+    /// From seconds since the Unix epoch (the controllers' time base), rounded to the
+    /// nanosecond, so a time read from a stamp with [`Time::as_secs_f64`] maps back onto
+    /// the same stamp. Saturating like [`Time::from_nanos`]; NaN gives the epoch.
+    pub fn from_secs_f64(s: f64) -> Self {
+        // `as` saturates at the i64 range and maps NaN to 0.
+        #[allow(clippy::cast_possible_truncation)]
+        Self::from_nanos((s * 1e9).round() as i64)
+    }
     /// Nanoseconds since the Unix epoch.
     pub fn as_nanos(&self) -> i64 {
         i64::from(self.sec) * 1_000_000_000 + i64::from(self.nanosec)

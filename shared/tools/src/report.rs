@@ -254,6 +254,10 @@ pub struct RunReport {
     /// The PR2 arm controller's stops by reason (its `arm.stop.*` counters): a stale
     /// input or a lost site stops the arm, and the error above then grows.
     pub pr2_stops: BTreeMap<String, u64>,
+    /// How often the simulated operator let go of the clutch and pressed it again on
+    /// seeing a safety stop on the display (`local_sim`'s `operator.reclutches`); each
+    /// press is one more of `clutch_engagements`.
+    pub operator_reclutches: u64,
     /// The robot world's job, judged from ground truth by the simulator (`remote_sim`'s
     /// `job.*` counters; `None` when its scene has no job or it gave no final status).
     pub job: Option<JobOutcome>,
@@ -794,6 +798,7 @@ impl Recorder {
                 }
             }
         }
+        r.operator_reclutches = counter("local_sim", "operator.reclutches").unwrap_or(0);
         r.job = JobOutcome::from_counters(|n| counter("remote_sim", n));
         r.operator = OperatorOutcome::from_counters(|n| counter("local_sim", n));
         r.realtime_scheduling = realtime_scheduling(finals);
@@ -1107,6 +1112,13 @@ impl RunReport {
                 .map(|(k, v)| format!("{k} x{v}"))
                 .collect();
             let _ = writeln!(s, "  PR2 arm stops: {}", stops.join(", "));
+        }
+        if self.operator_reclutches > 0 {
+            let _ = writeln!(
+                s,
+                "  the operator let go of the clutch and pressed it again {} time(s) on seeing the arm's safety stop",
+                self.operator_reclutches
+            );
         }
         if let Some(job) = &self.job {
             let _ = writeln!(

@@ -6,7 +6,6 @@
 //!   linear/angular velocity and acceleration limits, stopping without overshoot.
 //! * [`joint`]: [`JointVelocityLimiter`] brings joint velocity commands within
 //!   velocity, acceleration and position limits.
-//! * [`watchdog`]: [`Watchdog`] says whether the last valid command is fresh.
 //!
 //! [`Rejection`]: crate::Rejection
 
@@ -14,7 +13,6 @@ mod approach;
 pub mod cartesian;
 pub mod joint;
 pub mod jump;
-pub mod watchdog;
 
 pub use cartesian::{CartesianLimiter, CartesianLimits};
 pub use joint::{
@@ -22,4 +20,3 @@ pub use joint::{
     UR5_MAX_JOINT_VELOCITY_RAD_S, VelocityLimitStrategy,
 };
 pub use jump::{JumpFilter, JumpFilterConfig};
-pub use watchdog::{Watchdog, WatchdogConfig, WatchdogEvent, WatchdogState};

@@ -27,6 +27,7 @@
 //! (`teleop_hand_model::scene::push_human`), the same renderer as the dataset.
 
 pub mod mocap;
+pub mod reclutch;
 pub mod tasks;
 pub mod watching;
 
@@ -52,6 +53,7 @@ use teleop_render::{
 };
 
 pub use mocap::{Mocap, MocapConfig, MocapCounts, MocapReading};
+pub use reclutch::{Reclutch, ReclutchConfig, ReclutchCounts};
 pub use tasks::{TaskKind, TaskSample, TaskScript};
 use teleop_hardware::velocity_driver::{ArmJointLimits, ArmSim};
 pub use watching::{OperatorModel, WatchingConfig, WatchingOperator};
@@ -190,6 +192,8 @@ pub struct OperatorSiteConfig {
     pub task: TaskKind,
     /// The watching operator's settings.
     pub watching: WatchingConfig,
+    /// Both operators' foot on the clutch after a safety stop shown on the display.
+    pub reclutch: ReclutchConfig,
     /// The operator waits this long before the first task (the camera settles), s.
     pub start_delay_s: f64,
     /// Repeat the task (with `pause_s` between repetitions) until stopped.
@@ -216,6 +220,7 @@ impl Default for OperatorSiteConfig {
             operator: OperatorModel::Scripted,
             task: TaskKind::PickAndPlace,
             watching: WatchingConfig::default(),
+            reclutch: ReclutchConfig::default(),
             start_delay_s: 2.0,
             repeat: true,
             pause_s: 2.0,
@@ -284,6 +289,7 @@ impl OperatorSiteConfig {
         if self.operator == OperatorModel::Watching {
             self.watching.validate()?;
         }
+        self.reclutch.validate()?;
         self.mocap.validate()
     }
 }
