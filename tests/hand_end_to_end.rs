@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use teleop_bus::Bus;
 use teleop_hardware::wire;
-use teleop_interfaces::joints::SHADOW_FINGER_JOINTS as FINGER_JOINTS;
+use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 use teleop_interfaces::topics;
 use teleop_msgs::{Header, JointState, OperatorInput, Time, unix_nanos_now};
 use teleop_remote_site::hand_node::{self, HandNodeConfig};
@@ -26,7 +26,10 @@ fn targets(ffj3: f64) -> JointState {
     position[4] = ffj3 * 0.75; // rh_MFJ3
     JointState {
         header: stamp(),
-        name: FINGER_JOINTS.iter().map(|s| (*s).to_owned()).collect(),
+        name: SHADOW_FINGER_JOINTS
+            .iter()
+            .map(|s| (*s).to_owned())
+            .collect(),
         position,
         ..Default::default()
     }
@@ -34,7 +37,7 @@ fn targets(ffj3: f64) -> JointState {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_hand_node_follows_with_enable_and_holds_when_targets_stop() {
-    assert_eq!(FINGER_JOINTS[1], "rh_FFJ3");
+    assert_eq!(SHADOW_FINGER_JOINTS[1], "rh_FFJ3");
     let port = free_port().unwrap();
     let (hub, spoke) = isolated_pair(23, port);
     let sim = SimNodeConfig {

@@ -14,7 +14,7 @@ use teleop_hardware::ArmCommand;
 use teleop_hardware::safety::ArmSafety;
 use teleop_ik::{Goal, IkSettings, Solver};
 use teleop_kinematics::robots;
-use teleop_remote_site::arm_controller::ArmState;
+use teleop_remote_site::arm_controller::Pr2ArmState;
 use teleop_remote_site::arm_controller::{
     ArmController, ArmControllerConfig, ArmInputs, OperatorSample, WristSample,
 };
@@ -67,7 +67,7 @@ fn run(rate_hz: f64, steps: usize) {
         hand_alive: true,
         commander_conflict: false,
     };
-    let idle = ArmState {
+    let idle = Pr2ArmState {
         time_s: -dt,
         position_rad: q,
         velocity_rad_s: SVector::zeros(),
@@ -99,7 +99,7 @@ fn run(rate_hz: f64, steps: usize) {
             hand_alive: true,
             commander_conflict: false,
         };
-        let state = ArmState {
+        let state = Pr2ArmState {
             time_s: t,
             position_rad: q,
             velocity_rad_s: SVector::zeros(),

@@ -18,7 +18,7 @@ use teleop_control::OperatorSample;
 use teleop_control::hand::{HandControllerConfig, HandMode, ShadowHandController};
 use teleop_hardware::HandState;
 use teleop_hardware::safety::{HandLimits, HandSafety, HandSafetyConfig};
-use teleop_interfaces::joints::SHADOW_FINGER_JOINTS as FINGER_JOINTS;
+use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 use teleop_msgs::JointState;
 use teleop_remote_site::hand_controller::{HandSupervisor, HandSupervisorConfig};
 use teleop_sim::{CupGraspConfig, World};
@@ -41,12 +41,15 @@ fn main() {
         let out = c
             .step(DT, &s.position_rad, &s.velocity_rad_s, &target)
             .unwrap();
-        w.command_hand(&teleop_remote_site::hand_controller::hand_command(out));
+        w.command_hand(&teleop_hardware::HandCommand::from(out));
         w.step(DT);
         states.push(s);
     }
     let msg = JointState {
-        name: FINGER_JOINTS.iter().map(|s| (*s).to_owned()).collect(),
+        name: SHADOW_FINGER_JOINTS
+            .iter()
+            .map(|s| (*s).to_owned())
+            .collect(),
         position: target.iter().copied().collect(),
         ..Default::default()
     };

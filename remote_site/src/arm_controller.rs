@@ -68,12 +68,12 @@ pub use teleop_control::OperatorSample;
 use teleop_ik::{Goal, IkSettings, Solver};
 use teleop_kinematics::FixedChain;
 
-use teleop_hardware::{ArmCommand as Command, ArmState as State};
+use teleop_hardware::{ArmCommand, ArmState};
 
-/// The PR2 chain's command.
-pub type ArmCommand = Command<7>;
+/// The PR2 chain's command (5 arm joints and the Shadow hand's 2 wrist joints).
+pub type Pr2ArmCommand = ArmCommand<7>;
 /// The PR2 chain's state.
-pub type ArmState = State<7>;
+pub type Pr2ArmState = ArmState<7>;
 
 /// The thesis's control period (30 Hz): the rate its IK weights were tuned at, s.
 pub const THESIS_PERIOD_S: f64 = 1.0 / 30.0;
@@ -418,7 +418,7 @@ impl StopReason {
 /// The result of one step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ArmStep {
-    pub command: ArmCommand,
+    pub command: Pr2ArmCommand,
     /// `None` while engaged and moving; otherwise why the arm is stopped.
     pub stopped: Option<StopReason>,
     /// The Cartesian target after the limiter (while engaged).
@@ -594,7 +594,7 @@ impl ArmController {
         self.last_stop = Some(reason);
         self.joint_limiter.reset(SVector::zeros());
         ArmStep {
-            command: ArmCommand::stop(),
+            command: Pr2ArmCommand::stop(),
             stopped: Some(reason),
             target: None,
         }
@@ -633,7 +633,7 @@ impl ArmController {
     }
 
     /// One control step at time `now_s` (robot clock, seconds).
-    pub fn step(&mut self, now_s: f64, inputs: &ArmInputs, arm: &ArmState) -> ArmStep {
+    pub fn step(&mut self, now_s: f64, inputs: &ArmInputs, arm: &Pr2ArmState) -> ArmStep {
         self.counters.steps += 1;
         let nominal = 1.0 / self.cfg.rate_hz;
         let dt = match self.last_step_s {
@@ -802,7 +802,7 @@ impl ArmController {
             self.engaged = Some(engaged);
             self.joint_limiter.reset(SVector::zeros());
             return ArmStep {
-                command: ArmCommand::stop(),
+                command: Pr2ArmCommand::stop(),
                 stopped: None,
                 target: Some(limited),
             };
@@ -819,7 +819,7 @@ impl ArmController {
             .step(&v, &arm.position_rad, dt)
             .unwrap_or_else(|_| SVector::zeros());
         ArmStep {
-            command: ArmCommand { velocity_rad_s: v },
+            command: Pr2ArmCommand { velocity_rad_s: v },
             stopped: None,
             target: Some(limited),
         }

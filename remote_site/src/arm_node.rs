@@ -17,7 +17,8 @@ use teleop_node::{
 };
 
 use crate::arm_controller::{
-    ArmCommand, ArmController, ArmControllerConfig, ArmInputs, ArmMode, OperatorSample, WristSample,
+    ArmController, ArmControllerConfig, ArmInputs, ArmMode, OperatorSample, Pr2ArmCommand,
+    WristSample,
 };
 use crate::command_age::CommandAges;
 
@@ -256,7 +257,7 @@ impl Node for ArmNode {
                 self.hardware_errors += 1;
                 self.last_error = e.to_string();
                 // Without a state, command a stop (the hardware stops on its own too).
-                ArmCommand::stop()
+                Pr2ArmCommand::stop()
             }
         };
         if let Err(e) = self.hw.write(now_s, &command) {
@@ -311,7 +312,7 @@ impl Node for ArmNode {
     }
 
     fn shutdown(&mut self, now_s: f64) {
-        if let Err(e) = self.hw.write(now_s, &ArmCommand::stop()) {
+        if let Err(e) = self.hw.write(now_s, &Pr2ArmCommand::stop()) {
             tracing::warn!("stopping the arm at shutdown: {e}");
         }
     }

@@ -6,7 +6,7 @@
 //! # Behaviour
 //!
 //! * **Targets.** The operator site's hand inference sends `JointState` targets for the
-//!   17 finger joints, matched by name ([`FINGER_JOINTS`]; the two wrist joints belong
+//!   17 finger joints, matched by name ([`SHADOW_FINGER_JOINTS`]; the two wrist joints belong
 //!   to the arm). A message with a missing joint, a length mismatch or a non-finite
 //!   value is refused; so is a target beyond a joint limit by more than
 //!   `target_limit_margin_rad` (within the margin it is clamped to the limit: inference
@@ -43,24 +43,15 @@ use std::collections::BTreeMap;
 use nalgebra::SVector;
 use serde::{Deserialize, Serialize};
 use teleop_control::hand::{
-    HandControllerConfig, HandMode, HandOutput, HardwareInterface, JointInput, ShadowHandController,
+    HandControllerConfig, HandMode, HardwareInterface, JointInput, ShadowHandController,
 };
 use teleop_control::{Closed, ConfigError, GateMode, OperatorGate, OperatorSample};
 use teleop_hardware::wire::{self, WireError};
 use teleop_hardware::{HandCommand, HandState};
-use teleop_interfaces::joints::SHADOW_FINGER_JOINTS as FINGER_JOINTS;
+use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 use teleop_msgs::JointState;
 
 use crate::gravity::HandGravity;
-
-/// The hardware command for a control law's output.
-pub fn hand_command(out: HandOutput<17>) -> HandCommand {
-    match out {
-        HandOutput::Effort(t) => HandCommand::Effort(t),
-        HandOutput::Position(q) => HandCommand::Position(q),
-        HandOutput::Impedance(z) => HandCommand::Impedance(z),
-    }
-}
 
 /// Settings of the hand supervisor; the control laws' gains are in `controller`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -260,7 +251,7 @@ pub struct HandSupervisor {
 }
 
 impl HandSupervisor {
-    /// A supervisor for a hand with the given finger joint limits ([`FINGER_JOINTS`]
+    /// A supervisor for a hand with the given finger joint limits ([`SHADOW_FINGER_JOINTS`]
     /// order), holding until the first target.
     ///
     /// # Errors
@@ -297,7 +288,7 @@ impl HandSupervisor {
         })
     }
 
-    /// The Shadow hand's finger joint limits from our URDF ([`FINGER_JOINTS`] order).
+    /// The Shadow hand's finger joint limits from our URDF ([`SHADOW_FINGER_JOINTS`] order).
     ///
     /// # Errors
     /// Only if the embedded model lacked a finger joint.
@@ -307,7 +298,7 @@ impl HandSupervisor {
         let limits: Vec<_> = robot.dof_limits().collect();
         let mut lower = SVector::zeros();
         let mut upper = SVector::zeros();
-        for (i, name) in FINGER_JOINTS.iter().enumerate() {
+        for (i, name) in SHADOW_FINGER_JOINTS.iter().enumerate() {
             let l = limits[robot.dof_index(name)?];
             lower[i] = l.lower;
             upper[i] = l.upper;
@@ -346,7 +337,7 @@ impl HandSupervisor {
             let (lo, hi) = (self.lower[i], self.upper[i]);
             if q[i] < lo - m || q[i] > hi + m {
                 return Err(TargetRejection::OutOfRange {
-                    joint: FINGER_JOINTS[i],
+                    joint: SHADOW_FINGER_JOINTS[i],
                     value: q[i],
                     lower: lo,
                     upper: hi,
@@ -413,10 +404,10 @@ impl HandSupervisor {
             ),
         };
         let command = match out {
-            Ok(o) => hand_command(o),
+            Ok(o) => HandCommand::from(o),
             Err(_) => {
                 self.state_rejections += 1;
-                hand_command(*self.controller.last_output())
+                HandCommand::from(*self.controller.last_output())
             }
         };
         HandStep { command, hold }

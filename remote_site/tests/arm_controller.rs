@@ -4,7 +4,7 @@
 
 use nalgebra::{Isometry3, SVector, Translation3, UnitQuaternion, Vector3};
 use teleop_kinematics::robots;
-use teleop_remote_site::arm_controller::ArmState;
+use teleop_remote_site::arm_controller::Pr2ArmState;
 use teleop_remote_site::arm_controller::{
     ArmController, ArmControllerConfig, ArmInputs, OperatorSample, RelativeFrame, StopReason,
     WristSample,
@@ -100,7 +100,7 @@ impl Rig {
             hand_alive: self.hand_alive,
             commander_conflict: self.conflict,
         };
-        let state = ArmState {
+        let state = Pr2ArmState {
             time_s: self.t,
             position_rad: self.q,
             velocity_rad_s: SVector::zeros(),

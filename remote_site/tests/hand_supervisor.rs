@@ -7,7 +7,7 @@ use nalgebra::SVector;
 use teleop_control::OperatorSample;
 use teleop_control::hand::HardwareInterface;
 use teleop_hardware::HandCommand;
-use teleop_interfaces::joints::SHADOW_FINGER_JOINTS as FINGER_JOINTS;
+use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 use teleop_interfaces::joints::finger_joint_index;
 use teleop_msgs::JointState;
 use teleop_remote_site::hand_controller::{
@@ -48,7 +48,10 @@ fn prime(s: &mut HandSupervisor, w: &World) {
 
 fn target_msg(q: &SVector<f64, 17>) -> JointState {
     JointState {
-        name: FINGER_JOINTS.iter().map(|s| (*s).to_owned()).collect(),
+        name: SHADOW_FINGER_JOINTS
+            .iter()
+            .map(|s| (*s).to_owned())
+            .collect(),
         position: q.iter().copied().collect(),
         ..Default::default()
     }
@@ -240,7 +243,7 @@ fn bad_targets_are_refused_by_name_and_change_nothing() {
     let mut nan = good;
     nan[3] = f64::NAN;
     let e = s.accept_target(&target_msg(&nan), 0.1).unwrap_err();
-    assert!(e.to_string().contains(FINGER_JOINTS[3]), "{e}");
+    assert!(e.to_string().contains(SHADOW_FINGER_JOINTS[3]), "{e}");
     assert_eq!(e.kind(), "non_finite");
 
     let mut far = good;

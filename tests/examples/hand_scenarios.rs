@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use plotters::prelude::*;
 use teleop_control::hand::{HandControllerConfig, HandMode};
-use teleop_hardware::FINGERTIPS;
+use teleop_hardware::FINGERTIP_COUNT;
 use teleop_sim::{ExternalLoad, LoadTarget};
 use teleop_system_tests::scenarios::{GraspRun, GraspSample, SimEngine, grasp_run};
 
@@ -33,7 +33,7 @@ const MODES: [(HandMode, &str, &str); 3] = [
 ];
 /// Fingertips in `fingertip_force_n` order, with their colours: ff red, mf orange,
 /// rf green, lf blue, th purple.
-const FINGERS: [(&str, RGBColor); FINGERTIPS] = [
+const FINGERS: [(&str, RGBColor); FINGERTIP_COUNT] = [
     ("ff (first)", RGBColor(214, 39, 40)),
     ("mf (middle)", RGBColor(255, 127, 14)),
     ("rf (ring)", RGBColor(44, 160, 44)),

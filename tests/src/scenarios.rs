@@ -110,7 +110,7 @@ pub enum ScenarioError {
     Poisoned,
 }
 
-/// Index of a finger joint in [`FINGER_JOINTS`] order.
+/// Index of a finger joint in [`SHADOW_FINGER_JOINTS`] order.
 ///
 /// # Errors
 /// [`ScenarioError::UnknownJoint`].

@@ -27,9 +27,9 @@ use teleop_msgs::Image;
 pub use safety::{ArmSafety, ArmSafetyConfig, HandSafety, HandSafetyConfig, SafeArm, SafeHand};
 
 /// Number of actuated finger joints of the Shadow hand with BioTacs.
-pub const FINGER_JOINTS: usize = 17;
+pub const FINGER_DOF: usize = 17;
 /// Number of fingertip sensors.
-pub const FINGERTIPS: usize = 5;
+pub const FINGERTIP_COUNT: usize = 5;
 
 /// Measured state of an arm of `N` joints.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -64,12 +64,12 @@ impl<const N: usize> ArmCommand<N> {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HandState {
     pub time_s: f64,
-    pub position_rad: SVector<f64, FINGER_JOINTS>,
-    pub velocity_rad_s: SVector<f64, FINGER_JOINTS>,
+    pub position_rad: SVector<f64, FINGER_DOF>,
+    pub velocity_rad_s: SVector<f64, FINGER_DOF>,
     /// Effort actually applied per joint, N m.
-    pub effort_nm: SVector<f64, FINGER_JOINTS>,
+    pub effort_nm: SVector<f64, FINGER_DOF>,
     /// Normal contact force at each fingertip (ff, mf, rf, lf, th), N.
-    pub fingertip_force_n: [f64; FINGERTIPS],
+    pub fingertip_force_n: [f64; FINGERTIP_COUNT],
 }
 
 /// Command for the hand.
@@ -78,10 +78,10 @@ pub struct HandState {
 #[allow(clippy::large_enum_variant)]
 pub enum HandCommand {
     /// Joint torques, N m.
-    Effort(SVector<f64, FINGER_JOINTS>),
+    Effort(SVector<f64, FINGER_DOF>),
     /// Position targets for the hand's own servo loop (like the real hand's position
     /// controllers), rad.
-    Position(SVector<f64, FINGER_JOINTS>),
+    Position(SVector<f64, FINGER_DOF>),
     /// A joint impedance the hardware evaluates in its own loop; see [`HandImpedance`].
     Impedance(HandImpedance),
 }
@@ -99,7 +99,19 @@ pub enum HandCommand {
 /// points, as with the joint impedance interfaces of torque-controlled arms. A real
 /// Shadow hand driver evaluates it in its 1 kHz control loop, where the thesis's
 /// controller ran. The same type the control laws produce.
-pub type HandImpedance = JointImpedance<FINGER_JOINTS>;
+pub type HandImpedance = JointImpedance<FINGER_DOF>;
+
+/// A control law's output as the hardware command that carries it.
+impl From<teleop_control::hand::HandOutput<FINGER_DOF>> for HandCommand {
+    fn from(out: teleop_control::hand::HandOutput<FINGER_DOF>) -> Self {
+        use teleop_control::hand::HandOutput;
+        match out {
+            HandOutput::Effort(t) => HandCommand::Effort(t),
+            HandOutput::Position(q) => HandCommand::Position(q),
+            HandOutput::Impedance(z) => HandCommand::Impedance(z),
+        }
+    }
+}
 
 impl HandCommand {
     /// True when every value (every field of an impedance) is finite.

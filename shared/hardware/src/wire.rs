@@ -7,7 +7,7 @@ use nalgebra::SVector;
 use teleop_interfaces::joints::{FINGERTIPS, SHADOW_FINGER_JOINTS};
 use teleop_msgs::{FingertipPressures, Header, JointCommand, JointState, Time};
 
-use crate::{ArmCommand, ArmState, FINGER_JOINTS, HandCommand, HandImpedance, HandState};
+use crate::{ArmCommand, ArmState, FINGER_DOF, HandCommand, HandImpedance, HandState};
 
 /// Why a message could not be turned into a hardware value.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -262,7 +262,7 @@ pub const MODE_IMPEDANCE: &str = "impedance";
 
 /// A hand command as a `JointCommand` (the fields its mode uses; the others empty).
 pub fn hand_command_msg(c: &HandCommand, time_s: f64) -> JointCommand {
-    let list = |v: &SVector<f64, FINGER_JOINTS>| v.iter().copied().collect::<Vec<f64>>();
+    let list = |v: &SVector<f64, FINGER_DOF>| v.iter().copied().collect::<Vec<f64>>();
     let mut msg = JointCommand {
         header: stamp(time_s),
         name: names(&SHADOW_FINGER_JOINTS),
@@ -336,12 +336,12 @@ pub fn hand_command(msg: &JointCommand) -> Result<HandCommand, WireError> {
 ///
 /// # Errors
 /// [`WireError`] naming the joint or field at fault.
-pub fn finger_targets(msg: &JointState) -> Result<SVector<f64, FINGER_JOINTS>, WireError> {
+pub fn finger_targets(msg: &JointState) -> Result<SVector<f64, FINGER_DOF>, WireError> {
     joint_vector(msg, &SHADOW_FINGER_JOINTS, Field::Position)
 }
 
 /// Finger joint targets as a `JointState` (positions).
-pub fn finger_targets_msg(q: &SVector<f64, FINGER_JOINTS>, time_s: f64) -> JointState {
+pub fn finger_targets_msg(q: &SVector<f64, FINGER_DOF>, time_s: f64) -> JointState {
     JointState {
         header: stamp(time_s),
         name: names(&SHADOW_FINGER_JOINTS),

@@ -50,7 +50,7 @@ use teleop_render::{
 use super::error::SimError;
 use super::geometry::Capsule;
 use super::world::World;
-use teleop_interfaces::joints::SHADOW_FINGER_JOINTS as FINGER_JOINTS;
+use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 use teleop_kinematics::{KinematicState, Robot};
 
 /// Smallest accepted image side, px.
@@ -537,7 +537,7 @@ impl SceneCameras {
         let robot = world.scene_robot();
         let kin = world.scene_kinematics();
         let finger_capsules = world.finger_capsules();
-        let finger_dofs: Vec<usize> = FINGER_JOINTS
+        let finger_dofs: Vec<usize> = SHADOW_FINGER_JOINTS
             .iter()
             .filter_map(|j| robot.dof_index(j).ok())
             .collect();

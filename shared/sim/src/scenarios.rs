@@ -10,9 +10,7 @@ use super::error::SimError;
 use super::geometry::{Capsule, capsule_distance};
 use super::objects::{ExternalLoad, Object, ObjectShape};
 use super::world::World;
-use teleop_interfaces::joints::{
-    FINGERTIPS, FLEXION_JOINTS, SHADOW_FINGER_JOINTS as FINGER_JOINTS,
-};
+use teleop_interfaces::joints::{FINGERTIPS, FLEXION_JOINTS, SHADOW_FINGER_JOINTS};
 
 /// Arm posture the robot-site simulator starts in: elbow bent, away from the
 /// straight-arm singularity, so relative motion is possible in every direction.
@@ -22,7 +20,7 @@ pub const WORKING_POSTURE_RAD: [f64; 7] = [-0.5, 0.3, -1.0, -1.4, 0.3, -0.1, 0.1
 fn posture(pairs: &[(&str, f64)]) -> [f64; 17] {
     let mut q = [0.0; 17];
     for (name, value) in pairs {
-        if let Some(i) = FINGER_JOINTS.iter().position(|j| j == name) {
+        if let Some(i) = SHADOW_FINGER_JOINTS.iter().position(|j| j == name) {
             q[i] = *value;
         }
     }
@@ -40,7 +38,7 @@ pub struct TouchingTaskConfig {
     /// Arm posture, rad ([`PR2_ARM_JOINTS`](teleop_interfaces::joints::PR2_ARM_JOINTS) order). Default zero: arm
     /// straight forward, palm facing down.
     pub arm_posture_rad: [f64; 7],
-    /// Reference finger posture, rad ([`FINGER_JOINTS`] order), held by the position
+    /// Reference finger posture, rad ([`SHADOW_FINGER_JOINTS`] order), held by the position
     /// servo at start. Default: FF..LF J3 = J2 = 0.35 rad, THJ4 = 0.3 rad.
     pub hand_posture_rad: [f64; 17],
     /// Radius of the sphere whose cap is "the mouse", m. Default 0.04.

@@ -4,9 +4,7 @@ use nalgebra::{Isometry3, Matrix6xX, Point3, SVector, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use teleop_hardware::{ArmState, HandCommand, HandState};
-use teleop_interfaces::joints::{
-    PR2_ARM_JOINTS as ARM_JOINTS, SHADOW_FINGER_JOINTS as FINGER_JOINTS,
-};
+use teleop_interfaces::joints::{PR2_ARM_JOINTS as ARM_JOINTS, SHADOW_FINGER_JOINTS};
 use teleop_kinematics::{GravityModel, KinematicState, LinkId, Robot, robots};
 
 use super::config::WorldConfig;
@@ -66,7 +64,7 @@ struct ActiveLoad {
 pub struct Perturbation {
     /// Mass (and inertia) factor of each link moved by a finger joint, by link name.
     pub link_mass_scale: Vec<(String, f64)>,
-    /// Per finger joint ([`FINGER_JOINTS`] order).
+    /// Per finger joint ([`SHADOW_FINGER_JOINTS`] order).
     pub damping_scale: SVector<f64, 17>,
     pub armature_scale: SVector<f64, 17>,
     pub motor_gain_scale: SVector<f64, 17>,
@@ -138,7 +136,7 @@ pub struct World {
     kin: KinematicState,
     /// Robot DoF index of each arm joint ([`ARM_JOINTS`] order).
     arm_dof: [usize; 7],
-    /// Robot DoF index of each finger joint ([`FINGER_JOINTS`] order).
+    /// Robot DoF index of each finger joint ([`SHADOW_FINGER_JOINTS`] order).
     hand_dof: [usize; 17],
     /// Hand joint index of each robot DoF, if it is a finger joint.
     dof_hand: Vec<Option<usize>>,
@@ -213,7 +211,7 @@ impl World {
         let mut hand_axis_local = [Vector3::zeros(); 17];
         let mut hand_lower = SVector::<f64, 17>::zeros();
         let mut hand_upper = SVector::<f64, 17>::zeros();
-        for (i, name) in FINGER_JOINTS.iter().enumerate() {
+        for (i, name) in SHADOW_FINGER_JOINTS.iter().enumerate() {
             let d = robot.dof_index(name)?;
             hand_dof[i] = d;
             dof_hand[d] = Some(i);
@@ -331,7 +329,7 @@ impl World {
         let rng = ChaCha8Rng::seed_from_u64(config.seed);
         let mut gravity = GravityModel::new(
             robot.clone(),
-            &FINGER_JOINTS,
+            &SHADOW_FINGER_JOINTS,
             Vector3::from(config.gravity_m_s2),
         )?;
         gravity.scale_masses(|link| perturbation.mass_scale_of(link));

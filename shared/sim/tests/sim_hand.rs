@@ -3,11 +3,14 @@
 
 use nalgebra::SVector;
 use teleop_hardware::{HandCommand, HandHardware, HandImpedance};
-use teleop_interfaces::joints::SHADOW_FINGER_JOINTS as FINGER_JOINTS;
+use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 use teleop_sim::{TouchingTaskConfig, World, WorldConfig};
 
 fn idx(name: &str) -> usize {
-    FINGER_JOINTS.iter().position(|j| *j == name).unwrap()
+    SHADOW_FINGER_JOINTS
+        .iter()
+        .position(|j| *j == name)
+        .unwrap()
 }
 
 #[test]

@@ -3,13 +3,16 @@
 
 use nalgebra::SVector;
 use teleop_hardware::HandCommand;
-use teleop_interfaces::joints::SHADOW_FINGER_JOINTS as FINGER_JOINTS;
+use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 use teleop_sim::{
     CupGraspConfig, ExternalLoad, LoadTarget, TouchingTaskConfig, World, WorldConfig,
 };
 
 fn idx(name: &str) -> usize {
-    FINGER_JOINTS.iter().position(|j| *j == name).unwrap()
+    SHADOW_FINGER_JOINTS
+        .iter()
+        .position(|j| *j == name)
+        .unwrap()
 }
 
 #[test]

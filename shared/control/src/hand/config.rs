@@ -28,7 +28,7 @@ use crate::error::ConfigError;
 /// configuration keeps every product in a `step` finite (no `inf - inf` NaN).
 pub const MAX_CONFIG_VALUE: f64 = 1e9;
 
-/// Effort limits of the 17 finger joints in the remote site's `FINGER_JOINTS` order
+/// Effort limits of the 17 finger joints in the remote site's `SHADOW_FINGER_JOINTS` order
 /// (FF J4-J2, MF J4-J2, RF J4-J2, LF J5-J2, TH J5-J2), N m, from the `effort` attribute of the Shadow hand URDF
 /// (`shared/kinematics/urdf/shadow_hand.urdf`). Use as
 /// `PerJoint::Each(SVector::from(SHADOW_FINGER_MAX_EFFORT_NM))` for per-joint limits;

@@ -2,7 +2,7 @@
 //! impedance, and the biomimetic adaptive impedance + feedforward controller.
 //!
 //! Pure cores, generic over the number of joints `N` (the hand: `N = 17`, the
-//! remote site's `FINGER_JOINTS` order; [`ShadowHandController`]). No clock, no I/O,
+//! remote site's `SHADOW_FINGER_JOINTS` order; [`ShadowHandController`]). No clock, no I/O,
 //! no allocation after construction: the caller reads the hardware, passes the
 //! measured state, the target from the operator's hand inference and the period
 //! `dt`, and writes the returned command.

@@ -8,9 +8,9 @@ use serde::{Deserialize, Serialize};
 use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 
 use super::{Intervention, SafetyConfigError, SafetyCounters, check, step_dt};
-use crate::{FINGER_JOINTS, HandCommand, HandHardware, HandImpedance, HandState, HardwareError};
+use crate::{FINGER_DOF, HandCommand, HandHardware, HandImpedance, HandState, HardwareError};
 
-type Joints = SVector<f64, FINGER_JOINTS>;
+type Joints = SVector<f64, FINGER_DOF>;
 
 /// Settings of the hand's safety layer (joint limits come from the URDF).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -280,7 +280,7 @@ impl HandSafety {
         let mut out = *tau;
         let (mut clamped, mut at_limit, mut runaway) = (false, false, false);
         let k = self.config.limit_stiffness_nm_rad;
-        for i in 0..FINGER_JOINTS {
+        for i in 0..FINGER_DOF {
             let cap = self.effort_cap[i];
             if out[i].abs() > cap {
                 out[i] = out[i].signum() * cap;
@@ -325,7 +325,7 @@ impl HandSafety {
         let from = self.last_target.unwrap_or(state.position_rad);
         let mut out = clamped;
         let mut limited = false;
-        for i in 0..FINGER_JOINTS {
+        for i in 0..FINGER_DOF {
             let step = self.config.target_speed_fraction * self.limits.velocity_rad_s[i] * dt;
             let d = clamped[i] - from[i];
             if d.abs() > step {
@@ -495,7 +495,7 @@ mod tests {
             panic!("{out:?}")
         };
         let limits = *s.limits();
-        for i in 0..FINGER_JOINTS {
+        for i in 0..FINGER_DOF {
             assert!(f.position_rad[i] <= limits.upper_rad[i] + 1e-12);
             // Rate-limited from the measured posture.
             assert!(f.position_rad[i] - q[i] <= limits.velocity_rad_s[i] * 0.05 + 1e-9);
