@@ -136,6 +136,10 @@ pub const WRIST_TRACKER: &str = "wrist_tracker";
 /// ([`HAND_JOINT_TARGETS`](crate::topics::HAND_JOINT_TARGETS)).
 pub const HAND_INFERENCE: &str = "hand_inference";
 
+/// The operator-site node that moves the depth camera on the UR5
+/// ([`CAMERA_POSE`](crate::topics::CAMERA_POSE)).
+pub const CAMERA_ARM: &str = "camera_arm";
+
 /// The operator-site node that receives the camera views and acknowledges them
 /// ([`REMOTE_CAMERA_RECEIPTS`](crate::topics::REMOTE_CAMERA_RECEIPTS)).
 pub const OPERATOR_DISPLAY: &str = "operator_display";

@@ -15,8 +15,10 @@ use anyhow::{Context, bail};
 use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
 use teleop_bus::{Bus, BusConfig, Subscriber};
+use teleop_interfaces::nodes::CAMERA_ARM;
 use teleop_interfaces::nodes::{NODES, NodeSpec};
 use teleop_interfaces::topics;
+use teleop_local_site::camera_arm_node::CameraArmNodeConfig;
 use teleop_local_site::keyboard_panel::{KeyboardPanelConfig, TerminalMode};
 use teleop_local_site::local_sim::LocalSimConfig;
 use teleop_local_site::operator_display::OperatorDisplayConfig;
@@ -369,7 +371,17 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
     } else {
         None
     };
-    let mut recorder = Recorder::new(&bus, &task_name, "teleop launch").await?;
+    // The camera is judged against the goal of the camera arm's settings as this run
+    // starts it (its --config-dir file or defaults, with its --set overrides).
+    let camera: CameraArmNodeConfig = shipped_or_default(&args, CAMERA_ARM)?;
+    let camera_sets: Vec<String> = overrides
+        .iter()
+        .filter(|(n, _)| *n == CAMERA_ARM)
+        .map(|(_, s)| s.clone())
+        .collect();
+    let camera = teleop_node::config::apply_overrides(&camera, &camera_sets)?;
+    let mut recorder =
+        Recorder::new(&bus, &task_name, "teleop launch", camera.camera_arm.clone()).await?;
     let mut children: Vec<(&'static NodeSpec, Child)> = Vec::new();
     let mut _terminal = None;
     for spec in NODES.iter().filter(|n| {

@@ -11,6 +11,7 @@ use std::time::Duration;
 use anyhow::bail;
 use teleop_bus::{Bus, BusConfig};
 use teleop_interfaces::topics;
+use teleop_local_site::camera_arm_node::CameraArmNodeConfig;
 use teleop_msgs::NodeStatus;
 use teleop_node::ZenohArgs;
 
@@ -36,6 +37,10 @@ pub struct ReportArgs {
     /// Where the report is written (`report.json`, `report.png`).
     #[arg(long, default_value = "teleop-report")]
     pub report_dir: PathBuf,
+    /// The `camera_arm` node's config file the system runs with: the camera is judged
+    /// against its goal (standoff, view direction). Without it, the built-in defaults.
+    #[arg(long)]
+    pub camera_arm_config: Option<PathBuf>,
 }
 
 /// Whether `s` is the operator-site simulator saying its task has run once (`teleop
@@ -49,7 +54,12 @@ pub async fn run(args: ReportArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
     zenoh.apply(&mut cfg);
     let bus = Bus::open(&format!("teleop_report_{}", std::process::id()), &cfg).await?;
     let status = bus.subscriber(&topics::NODE_STATUS).await?;
-    let mut recorder = Recorder::new(&bus, &args.task, "teleop report").await?;
+    let camera: CameraArmNodeConfig = match &args.camera_arm_config {
+        Some(path) => teleop_node::config::load_checked(path)?,
+        None => CameraArmNodeConfig::default(),
+    };
+    let mut recorder =
+        Recorder::new(&bus, &args.task, "teleop report", camera.camera_arm.clone()).await?;
     tracing::info!(task = %args.task, "recording");
     let mut latest: BTreeMap<String, NodeStatus> = BTreeMap::new();
     let started = tokio::time::Instant::now();

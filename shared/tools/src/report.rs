@@ -522,11 +522,18 @@ const FRAME_ON_THE_BUS_TO_TARGETS: &str = "depth frame on the bus -> finger targ
 const CAPTURE_TO_TARGETS: &str = "depth frame -> finger targets";
 
 impl Recorder {
-    /// Subscribes to everything the report needs.
+    /// Subscribes to everything the report needs; the camera is judged against the
+    /// goal of `camera` (the camera arm's control settings the run's `camera_arm` ran
+    /// with: its standoff and view direction).
     ///
     /// # Errors
     /// Bus declarations; the PR2 model.
-    pub async fn new(bus: &Bus, task: &str, recorded_by: &str) -> anyhow::Result<Self> {
+    pub async fn new(
+        bus: &Bus,
+        task: &str,
+        recorded_by: &str,
+        camera: CameraArmConfig,
+    ) -> anyhow::Result<Self> {
         Ok(Self {
             start_s: bus.now_s(),
             truth_pose: bus.subscriber(&topics::SIM_OPERATOR_HAND_POSE).await?,
@@ -538,7 +545,7 @@ impl Recorder {
             input: bus.subscriber(&topics::OPERATOR_INPUT).await?,
             tips: bus.subscriber(&topics::FINGERTIP_PRESSURES).await?,
             pr2_chain: teleop_kinematics::robots::pr2_arm_chain()?,
-            camera_cfg: CameraArmConfig::default(),
+            camera_cfg: camera,
             truth: Vec::new(),
             truth_joints_by_stamp: BTreeMap::new(),
             pending_targets: Vec::new(),
