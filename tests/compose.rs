@@ -405,3 +405,52 @@ fn the_cut_check_judges_a_following_arm_and_explains_one_that_was_not() {
         "{text}"
     );
 }
+
+/// `deploy/compose/check_report.py` on a report with one stop on a stale wrist pose:
+/// the clutch engagements it expects are the task's one and one per re-press the
+/// operator made on seeing the stop; an engagement the operator did not make fails.
+#[test]
+fn the_report_check_counts_the_operators_re_presses_as_engagements() {
+    let judge = |engagements: u32, reclutches: u32| {
+        let report = serde_json::json!({
+            "depth_frames": 400, "fraction_hand_fully_in_view": 1.0,
+            "camera_position_error_m": {"mean": 0.003, "max": 0.016},
+            "clutch_engagements": engagements, "operator_reclutches": reclutches,
+            "pr2_following_error_m": {"samples": 1000, "mean": 0.004},
+            "pr2_fraction_following": 0.9, "pr2_stops": {"stale_wrist_pose": 1},
+            "pr2_position_error_m": {"mean": 0.005}, "finger_target_frames": 390,
+            "hand_joint_mean_error_rad": {"mean": 0.05}, "latency": [],
+        });
+        let path = std::env::temp_dir().join(format!(
+            "teleop-report-check-{}-{engagements}-{reclutches}.json",
+            std::process::id()
+        ));
+        std::fs::write(&path, report.to_string()).unwrap();
+        let python = std::env::var("TELEOP_PYTHON").unwrap_or_else(|_| "python3".into());
+        let out = std::process::Command::new(python)
+            .arg(repo_root().join("deploy/compose/check_report.py"))
+            .arg(&path)
+            .output()
+            .unwrap();
+        std::fs::remove_file(&path).unwrap();
+        let text = String::from_utf8_lossy(&out.stdout).into_owned()
+            + &String::from_utf8_lossy(&out.stderr);
+        (out.status.code().unwrap_or(-1), text)
+    };
+    let (code, text) = judge(2, 1);
+    assert_eq!(code, 0, "{text}");
+    assert!(
+        text.contains("ok  clutch engagements: 2 (goal == 2)"),
+        "{text}"
+    );
+    assert!(
+        text.contains("pressed the clutch again 1 time(s)"),
+        "{text}"
+    );
+    let (code, text) = judge(2, 0);
+    assert_eq!(code, 1, "{text}");
+    assert!(
+        text.contains("BAD clutch engagements: 2 (goal == 1)"),
+        "{text}"
+    );
+}

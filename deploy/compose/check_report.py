@@ -7,9 +7,11 @@ every latency stage measured. Prints each figure with its goal; exits 1 on a mis
 
 The PR2's figures are those of the clutched samples in which its controller was Active
 (following). A wrist pose delayed past its 100 ms deadline on the way (eleven containers
-on two cores stall now and then) makes the arm stop, correctly, and the scripted
-operator does not press the clutch again; such a stop is allowed once, named, and the
-arm must have followed for at least half of the clutched samples."""
+on two cores stall now and then) makes the arm stop, correctly, and the stop latches
+until the clutch is released; the simulated operator, seeing the arm's Fault on the
+display, lets go of the clutch and presses it again (`operator_reclutches`, each one
+more clutch engagement). Such a stop is allowed once, named, and the arm must have
+followed for at least half of the clutched samples."""
 
 import json
 import sys
@@ -20,12 +22,14 @@ def main(path: str) -> int:
     with open(path, encoding="utf-8") as f:
         r = json.load(f)
     stale_stops = r.get("pr2_stops", {}).get("stale_wrist_pose", 0)
+    reclutches = r.get("operator_reclutches", 0)
     checks = [
         ("depth frames", r["depth_frames"], ">", 300),
         ("hand fully in view", r["fraction_hand_fully_in_view"], ">=", 0.995),
         ("camera error mean (m)", r["camera_position_error_m"]["mean"], "<=", 0.01),
         ("camera error max (m)", r["camera_position_error_m"]["max"], "<=", 0.03),
-        ("clutch engagements", r["clutch_engagements"], "==", 1),
+        # One press for the task, one more for each re-press after a safety stop.
+        ("clutch engagements", r["clutch_engagements"], "==", 1 + reclutches),
         ("PR2 samples while following", r["pr2_following_error_m"]["samples"], ">", 500),
         ("PR2 error mean while following (m)", r["pr2_following_error_m"]["mean"], "<=",
          0.005),
@@ -48,7 +52,8 @@ def main(path: str) -> int:
     if stale_stops:
         print("  the PR2 arm made a safety stop on a stale wrist pose during the task "
               f"(pr2_stops: {r['pr2_stops']}; overall clutched error "
-              f"{r['pr2_position_error_m']['mean'] * 100:.1f} cm mean)")
+              f"{r['pr2_position_error_m']['mean'] * 100:.1f} cm mean; the operator pressed the "
+              f"clutch again {reclutches} time(s))")
     return 1 if failed else 0
 
 if __name__ == "__main__":
