@@ -349,14 +349,21 @@ fn judge_cut(following: bool, stop_after_s: f64, after: AfterStop) -> (i32, Stri
     };
     std::fs::write(dir.join("wrist.jsonl"), wrist).unwrap();
     std::fs::write(dir.join("status.jsonl"), reports).unwrap();
+    let wrist = dir.join("wrist.jsonl").display().to_string();
+    let status = dir.join("status.jsonl").display().to_string();
+    let out = run_check("check_partition.py", &[&wrist, &status, "10.0", "12.0"]);
+    std::fs::remove_dir_all(&dir).unwrap();
+    out
+}
+
+/// Runs `deploy/compose/<script>` with `args`; its exit code and its output.
+fn run_check(script: &str, args: &[&str]) -> (i32, String) {
     let python = std::env::var("TELEOP_PYTHON").unwrap_or_else(|_| "python3".into());
     let out = std::process::Command::new(python)
-        .arg(repo_root().join("deploy/compose/check_partition.py"))
-        .args([dir.join("wrist.jsonl"), dir.join("status.jsonl")])
-        .args(["10.0", "12.0"])
+        .arg(repo_root().join("deploy/compose").join(script))
+        .args(args)
         .output()
         .unwrap();
-    std::fs::remove_dir_all(&dir).unwrap();
     let text =
         String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
     (out.status.code().unwrap_or(-1), text)
@@ -426,16 +433,9 @@ fn the_report_check_counts_the_operators_re_presses_as_engagements() {
             std::process::id()
         ));
         std::fs::write(&path, report.to_string()).unwrap();
-        let python = std::env::var("TELEOP_PYTHON").unwrap_or_else(|_| "python3".into());
-        let out = std::process::Command::new(python)
-            .arg(repo_root().join("deploy/compose/check_report.py"))
-            .arg(&path)
-            .output()
-            .unwrap();
+        let out = run_check("check_report.py", &[&path.display().to_string()]);
         std::fs::remove_file(&path).unwrap();
-        let text = String::from_utf8_lossy(&out.stdout).into_owned()
-            + &String::from_utf8_lossy(&out.stderr);
-        (out.status.code().unwrap_or(-1), text)
+        out
     };
     let (code, text) = judge(2, 1);
     assert_eq!(code, 0, "{text}");
