@@ -164,6 +164,17 @@ fn unknown_and_misspelled_fields_are_named() {
         err.contains("hardware_interfaces") && err.contains("172.30.1.0/99"),
         "{err}"
     );
+    // A deadline for a topic the table does not have; one it has is taken.
+    let mut cfg: WristTrackerConfig =
+        parse_toml("[bus.deadlines_ms]\n\"teleop/wrist_poses\" = 150\n").unwrap();
+    let err = teleop_node::config::validate_all(&mut cfg).unwrap_err();
+    assert!(
+        err.contains("bus.deadlines_ms") && err.contains("teleop/wrist_poses"),
+        "{err}"
+    );
+    let mut cfg: WristTrackerConfig =
+        parse_toml("[bus.deadlines_ms]\n\"teleop/wrist_pose\" = 150\n").unwrap();
+    teleop_node::config::validate_all(&mut cfg).expect("a topic of the table");
     let cfg: WristTrackerConfig = parse_toml("pose_rate_hz = -1.0\n").unwrap();
     assert!(cfg.validate().unwrap_err().contains("pose_rate_hz"));
 }

@@ -49,6 +49,18 @@ pub fn validate_all<C: NodeConfig>(cfg: &mut C) -> Result<(), String> {
         tls.check_endpoints(&zenoh.connect, zenoh.listened())
             .map_err(|e| format!("bus.zenoh.{e}"))?;
     }
+    // A deadline for a topic the table does not have would never apply: a typo, named.
+    for topic in cfg.bus_mut().deadlines_ms.keys() {
+        if !teleop_interfaces::topics::ALL
+            .iter()
+            .any(|t| t.name == topic.as_str())
+        {
+            return Err(format!(
+                "bus.deadlines_ms: no topic {topic:?} in the topic table (names as in \
+                 docs/topics.md, e.g. \"teleop/wrist_pose\")"
+            ));
+        }
+    }
     cfg.scheduling().validate()?;
     cfg.validate()
 }
