@@ -540,9 +540,9 @@ impl Node for LocalSimNode {
             }
         }
         let intended = world.pedals();
-        let releasing = self.reclutch.releasing();
+        let reclutches = self.reclutch.counts().reclutches;
         let clutch = self.reclutch.pedal(now_s, intended.clutch);
-        if self.reclutch.releasing() && !releasing {
+        if self.reclutch.counts().reclutches > reclutches {
             tracing::info!(
                 reclutches = self.reclutch.counts().reclutches,
                 "operator: the display shows the arm stopped (its controller in Fault); \
@@ -550,13 +550,12 @@ impl Node for LocalSimNode {
             );
         }
         if self.pedals_due.due(now_s) {
-            let p = intended;
             let msg = OperatorInput {
                 header: Header::new(Time::from_secs_f64(now_s), ""),
                 clutch,
-                enable: p.enable,
-                camera_stop: p.camera_stop,
-                motion_scale: p.motion_scale,
+                enable: intended.enable,
+                camera_stop: intended.camera_stop,
+                motion_scale: intended.motion_scale,
             };
             if let Err(e) = self.pedals_pub.put(&msg) {
                 self.fail("pedals", e);

@@ -113,6 +113,15 @@ fn node_overrides(sets: &[String]) -> anyhow::Result<Vec<(&'static str, String)>
         .collect()
 }
 
+/// The `--set` overrides of node `name` (`KEY=VALUE`, its own config's keys).
+fn sets_for(overrides: &[(&'static str, String)], name: &str) -> Vec<String> {
+    overrides
+        .iter()
+        .filter(|(n, _)| *n == name)
+        .map(|(_, s)| s.clone())
+        .collect()
+}
+
 /// This run's directory for the configs the launcher writes.
 fn run_dir() -> anyhow::Result<PathBuf> {
     let dir = std::env::temp_dir().join(format!("teleop-launch-{}", std::process::id()));
@@ -374,14 +383,8 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
     // The camera is judged against the goal of the camera arm's settings as this run
     // starts it (its --config-dir file or defaults, with its --set overrides).
     let camera: CameraArmNodeConfig = shipped_or_default(&args, CAMERA_ARM)?;
-    let camera_sets: Vec<String> = overrides
-        .iter()
-        .filter(|(n, _)| *n == CAMERA_ARM)
-        .map(|(_, s)| s.clone())
-        .collect();
-    let camera = teleop_node::config::apply_overrides(&camera, &camera_sets)?;
-    let mut recorder =
-        Recorder::new(&bus, &task_name, "teleop launch", camera.camera_arm.clone()).await?;
+    let camera = teleop_node::config::apply_overrides(&camera, &sets_for(&overrides, CAMERA_ARM))?;
+    let mut recorder = Recorder::new(&bus, &task_name, "teleop launch", camera.camera_arm).await?;
     let mut children: Vec<(&'static NodeSpec, Child)> = Vec::new();
     let mut _terminal = None;
     for spec in NODES.iter().filter(|n| {
@@ -408,7 +411,7 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
             cmd.arg("--config")
                 .arg(dir.join(format!("{}.toml", spec.name)));
         }
-        for (_, set) in overrides.iter().filter(|(n, _)| *n == spec.name) {
+        for set in sets_for(&overrides, spec.name) {
             cmd.arg("--set").arg(set);
         }
         cmd.args(zenoh.to_args());

@@ -58,8 +58,7 @@ pub async fn run(args: ReportArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         Some(path) => teleop_node::config::load_checked(path)?,
         None => CameraArmNodeConfig::default(),
     };
-    let mut recorder =
-        Recorder::new(&bus, &args.task, "teleop report", camera.camera_arm.clone()).await?;
+    let mut recorder = Recorder::new(&bus, &args.task, "teleop report", camera.camera_arm).await?;
     tracing::info!(task = %args.task, "recording");
     let mut latest: BTreeMap<String, NodeStatus> = BTreeMap::new();
     let started = tokio::time::Instant::now();

@@ -182,12 +182,6 @@ impl Reclutch {
         true
     }
 
-    /// Whether the pedal is up in answer to a Fault report (for the log).
-    #[must_use]
-    pub fn releasing(&self) -> bool {
-        self.up_until_s.is_some()
-    }
-
     #[must_use]
     pub fn counts(&self) -> ReclutchCounts {
         self.counts
