@@ -1,11 +1,14 @@
-//! Searches a PR2 start posture for a side grasp of the pick job: the palm facing
-//! sideways (world +y, turned by a yaw), the fingers level (or pitched), and room in
-//! every joint for the moves the job needs from there (12 cm forward and back, 15 cm
-//! toward the object, 8 cm down, 12 cm up, two diagonals), each walked in 1 cm steps
-//! of the tracking IK the arm controller runs. Prints every posture that beats the best
-//! so far: its worst distance to a joint limit over all the moves (rad) and which joint.
+//! Searches a PR2 start posture for the pick job's grasp and room in every joint for the
+//! moves the job needs from there (12 cm forward and back, 15 cm toward the object, 8 cm
+//! down, 12 cm up, two diagonals; for the top grasp 15 cm down), each walked in 1 cm
+//! steps of the tracking IK the arm controller runs. Side grasp: the palm facing
+//! sideways (world +y, turned by a yaw), the fingers level (or pitched). Top grasp
+//! (`top`): the palm facing down, the fingers level (or pitched) and forward, turned by
+//! a yaw. Prints every posture that beats the best so far: its worst distance to a
+//! joint limit over all the moves (rad) and which joint.
 //!
 //!     cargo run --release -p teleop-ik --example pick_posture
+//!     cargo run --release -p teleop-ik --example pick_posture -- top
 //!     cargo run --release -p teleop-ik --example pick_posture -- -0.23,0.862,-0.328,-1.327,1.756,-0.082,-0.109
 //!
 //! With a posture (7 joint angles, rad) it only rates that one over the same moves.
@@ -88,17 +91,21 @@ fn main() {
         (r * Vector3::z()).as_slice(),
         (r * Vector3::x()).as_slice()
     );
+    let args: Vec<String> = std::env::args().skip(1).filter(|a| a != "--").collect();
+    let top = args.iter().any(|a| a == "top");
+    let down = if top { -0.15 } else { -0.08 };
     let moves = [
         Vector3::new(0.12, 0.0, 0.0),
         Vector3::new(-0.12, 0.0, 0.0),
         Vector3::new(0.0, 0.15, 0.0),
         Vector3::new(0.0, -0.10, 0.0),
-        Vector3::new(0.0, 0.0, -0.08),
+        Vector3::new(0.0, 0.0, down),
         Vector3::new(0.0, 0.0, 0.12),
         Vector3::new(0.1, 0.1, 0.1),
         Vector3::new(-0.1, 0.1, -0.06),
+        Vector3::new(0.1, 0.15, down),
     ];
-    if let Some(arg) = std::env::args().skip(1).find(|a| a != "--") {
+    if let Some(arg) = args.iter().find(|a| *a != "top") {
         let v: Result<Vec<f64>, _> = arg.split(',').map(|x| x.trim().parse::<f64>()).collect();
         let v = match v {
             Ok(v) if v.len() == 7 && v.iter().all(|x| x.is_finite()) => v,
@@ -118,14 +125,17 @@ fn main() {
     }
     let mut best: Option<(f64, SVector<f64, 7>, Isometry3<f64>, usize)> = None;
     let mut seed = 0;
-    for pitch_deg in [0.0f64, -10.0, 10.0] {
-        for yaw_deg in [0.0f64, 15.0, 30.0, 45.0, 60.0] {
+    for pitch_deg in [0.0f64, -10.0, 10.0, 20.0, 30.0] {
+        for yaw_deg in [0.0f64, 15.0, 30.0, 45.0, 60.0, -15.0, -30.0] {
             // Fingers forward (+x) turned by yaw about z and pitched; palm normal +y.
             let fingers =
                 Rotation3::from_euler_angles(0.0, -pitch_deg.to_radians(), yaw_deg.to_radians())
                     * Vector3::x();
-            let normal0 =
-                Rotation3::from_euler_angles(0.0, 0.0, yaw_deg.to_radians()) * Vector3::y();
+            let normal0 = if top {
+                -Vector3::z()
+            } else {
+                Rotation3::from_euler_angles(0.0, 0.0, yaw_deg.to_radians()) * Vector3::y()
+            };
             let normal = (normal0 - fingers * fingers.dot(&normal0)).normalize();
             let y = -normal;
             let z = fingers;

@@ -246,6 +246,17 @@ fn a_bad_scene_is_refused_with_its_name() -> anyhow::Result<()> {
         .err()
         .map(|e| e.to_string());
     assert!(e.as_deref().is_some_and(|e| e.contains("name")), "{e:?}");
+    for bad in [f64::NAN, 0.5] {
+        let mut config = CubeUnderPalm::default().config(&robot)?;
+        config.robot.impratio = bad;
+        let e = PhysicsWorld::new(&robot, &config)
+            .err()
+            .map(|e| e.to_string());
+        assert!(
+            e.as_deref().is_some_and(|e| e.contains("impratio")),
+            "{bad}: {e:?}"
+        );
+    }
     Ok(())
 }
 

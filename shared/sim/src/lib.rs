@@ -118,7 +118,10 @@ pub use config::{
 pub use error::SimError;
 pub use hardware::{RobotWorld, SharedWorld, SimArm, SimHand, share};
 pub use objects::{ExternalLoad, LoadTarget, Object, ObjectShape};
-pub use physical::{MujocoWorld, MujocoWorldConfig, PickJobConfig, PickSceneConfig};
+pub use physical::{
+    MujocoWorld, MujocoWorldConfig, PICK_TOP_GRASP_POSTURE_RAD, PICK_TOP_GRASP_TABLE_BELOW_PALM_M,
+    PickJobConfig, PickSceneConfig,
+};
 pub use scenarios::{CupGraspConfig, TouchingTaskConfig, WORKING_POSTURE_RAD};
 pub use teleop_hardware::velocity_driver::{ArmJointLimits, ArmSim};
 pub use world::{ContactInfo, Perturbation, World};

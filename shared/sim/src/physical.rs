@@ -636,6 +636,24 @@ impl RobotWorld for MujocoWorld {
     }
 }
 
+/// The PR2's start posture for the pick job's top grasp (thesis ch. 7.6.2: "We
+/// teleoperated the robot to grasp the Pringles can from the top and from the right side
+/// by power grasp"): the palm facing down, the fingers 20 deg above the horizontal and
+/// turned 15 deg to the left. Searched by `cargo run --release -p teleop-ik --example
+/// pick_posture -- top`: of the palm-down postures around the working palm it keeps the
+/// most room to every joint limit (0.128 rad, the Shadow wrist's WRJ2) over the job's
+/// moves (12 cm forward and back, 15 cm toward the object, 15 cm down, 12 cm up,
+/// diagonals) walked by the tracking IK; the working posture keeps 0.124 rad there.
+/// At the working posture (the palm facing 40 deg below the horizontal, the fingers
+/// 27 deg up) neither a side grasp nor a top grasp of the can held
+/// (`cargo run --release -p teleop-sim --example grasp_study`, docs/physics.md).
+pub const PICK_TOP_GRASP_POSTURE_RAD: [f64; ARM_DOF] =
+    [-0.415, 0.685, -0.765, -1.381, 0.56, -0.158, 0.101];
+
+/// The table top below the palm of [`PICK_TOP_GRASP_POSTURE_RAD`], m: the can's top
+/// (23 cm tall) 10 cm below the palm, so the grasp is 8-9 cm down and 15 cm sideways.
+pub const PICK_TOP_GRASP_TABLE_BELOW_PALM_M: f64 = 0.33;
+
 /// A table in front of the robot with the objects of the pick tasks (thesis ch. 6.4's
 /// Pringles can and cube) on it, placed from the palm at an arm posture: the table top
 /// `table_below_palm_m` below the palm, the can and the cube `object_offset_m` to either

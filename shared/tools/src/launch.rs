@@ -225,6 +225,25 @@ fn forward_keys(
 /// job (`[pick.job]` of `remote_sim`), judged by the robot-site simulator.
 pub const PICK_JOB: &str = "pick";
 
+/// Settings a task needs on other nodes, before the command line's own `--set` (which
+/// win): the pick job starts the PR2 at the top grasp's posture with the table under
+/// it (`teleop_sim::PICK_TOP_GRASP_POSTURE_RAD`).
+fn task_sets(task: Option<&str>) -> Vec<String> {
+    if task != Some(PICK_JOB) {
+        return Vec::new();
+    }
+    let posture = teleop_sim::PICK_TOP_GRASP_POSTURE_RAD
+        .map(|v| v.to_string())
+        .join(", ");
+    vec![
+        format!("remote_sim.pick.arm_posture_rad=[{posture}]"),
+        format!(
+            "remote_sim.pick.table_below_palm_m={}",
+            teleop_sim::PICK_TOP_GRASP_TABLE_BELOW_PALM_M
+        ),
+    ]
+}
+
 /// The simulator's config for this run: the shipped file or the defaults, with the
 /// task chosen on the command line (run once).
 fn local_sim_config(args: &LaunchArgs) -> anyhow::Result<Option<(PathBuf, String)>> {
@@ -356,7 +375,9 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
     let status = bus.subscriber(&topics::NODE_STATUS).await?;
     let mut log = StatusLog::default();
 
-    let overrides = node_overrides(&args.set)?;
+    let mut sets = task_sets(args.task.as_deref());
+    sets.extend(args.set.iter().cloned());
+    let overrides = node_overrides(&sets)?;
     ensure_onnx_runtime(&args).await?;
     let sim_config = local_sim_config(&args)?;
     let (display_config, display_listen) = display_config(&args)?;
@@ -792,5 +813,32 @@ mod tests {
         let err = node_overrides(&["remote_simm.engine=mujoco".into()]).expect_err("no node");
         assert!(err.to_string().contains("remote_simm"), "{err}");
         assert!(node_overrides(&["engine".into()]).is_err());
+    }
+
+    #[test]
+    fn the_pick_job_starts_the_robot_at_the_top_grasp_posture() {
+        assert!(task_sets(Some("fader")).is_empty());
+        assert!(task_sets(None).is_empty());
+        let sets = node_overrides(&task_sets(Some(PICK_JOB))).expect("valid");
+        // The keys and values are the robot-site simulator's pick scene's own (its
+        // config holds the scene under `pick`; unknown fields are refused).
+        #[derive(serde::Serialize, serde::Deserialize, Default)]
+        #[serde(deny_unknown_fields)]
+        struct Sim {
+            pick: teleop_sim::PickSceneConfig,
+        }
+        let scene =
+            teleop_node::config::apply_overrides(&Sim::default(), &sets_for(&sets, "remote_sim"))
+                .expect("its fields")
+                .pick;
+        assert_eq!(
+            scene.arm_posture_rad,
+            teleop_sim::PICK_TOP_GRASP_POSTURE_RAD
+        );
+        assert_eq!(
+            scene.table_below_palm_m,
+            teleop_sim::PICK_TOP_GRASP_TABLE_BELOW_PALM_M
+        );
+        assert_eq!(sets.len(), 2, "{sets:?}");
     }
 }

@@ -300,15 +300,16 @@ fn the_watching_operator_without_camera_views_waits_and_never_engages_the_arm() 
     assert_eq!(json["job"]["lifted"], false, "{json}");
 }
 
-/// The operator who watches the display does the pick job through the shipped nodes:
-/// it sees the can in the views it received, turns the hand, reaches the grasp by
-/// corrected submovements and closes the hand; the judge ran on every tick without
-/// refusals. Whether the grasp then holds is not asserted: on this machine it did in 2
-/// of 6 runs (docs/physics.md, "The operator who watches the display").
+/// The operator who watches the display does the pick job through the shipped nodes
+/// (default seed): it sees the can in the views it received, reaches the top grasp by
+/// corrected submovements, closes the hand, lifts, carries, places the can and goes
+/// back: the judge (from ground truth, in the robot-site simulator) calls the job a
+/// success, having run on every tick without refusals. On this machine: a success in
+/// 23.4 s, and with two other seeds too (docs/physics.md, "The top grasp").
 #[test]
-fn the_watching_operator_reaches_and_closes_on_the_can_through_the_shipped_nodes() {
+fn the_watching_operator_picks_and_places_the_can_through_the_shipped_nodes() {
     let _one = one_system();
-    let json = pick_job("112", "45", &[]);
+    let json = pick_job("112", "60", &[]);
     let op = &json["operator"];
     let n = |v: &serde_json::Value| v.as_u64().unwrap_or_else(|| panic!("{op}"));
     assert!(n(&op["scene_percepts"]) > 100, "{op}");
@@ -324,6 +325,9 @@ fn the_watching_operator_reaches_and_closes_on_the_can_through_the_shipped_nodes
     assert_ne!(op["phase"], "waiting_for_view", "{op}");
     assert!(n(&json["clutch_engagements"]) >= 1, "{json}");
     assert_eq!(json["job"]["judge_errors"], 0, "{json}");
+    assert_eq!(json["job"]["lifted"], true, "the can came up: {json}");
+    assert_eq!(json["job"]["succeeded"], true, "judged a success: {json}");
+    assert_eq!(op["phase"], "done", "{op}");
 }
 
 /// The nodes whose configs ask for real-time scheduling by default: the depth frame's

@@ -69,19 +69,29 @@ pub struct WatchingConfig {
     pub robot_from_operator_rpy_deg: [f64; 3],
     /// Before reaching, turn the hand about its fingers so the robot's palm faces the
     /// object (a side grasp: at the PR2's working posture the palm faces down and
-    /// forward, the thumb hanging below it). Default true.
+    /// forward, the thumb hanging below it). Default false: the pick job grasps the can
+    /// from the top, the palm facing down as it starts
+    /// ([`crate::PICK_TOP_GRASP_POSTURE_RAD`]); no side grasp of the can held in the
+    /// physical world (docs/physics.md).
     pub turn_to_face_object: bool,
     /// Speed of that turn, deg/s. Default 14 (the pouring task's 90 deg in 6.5 s, which
     /// the camera arm can follow).
     pub turn_speed_deg_s: f64,
-    /// The object's centre in the palm's frame at the grasp (-y out of the palm, z
-    /// along the fingers), m. Default [0, -0.052, 0.10]: the can's 37.5 mm radius and
-    /// 2.5 mm beyond the palm's 12 mm half thickness, at the knuckles (10 cm along the
-    /// fingers), so the closing fingers wrap it (nearer the wrist they swept the can
-    /// toward the wrist and off the table).
+    /// A point in the palm's frame (-y out of the palm, z along the fingers) that goes
+    /// `grasp_above_centre_m` above the object's centre at the grasp, m. Default [0,
+    /// -0.017, 0.075]: 5 mm out of the palm's 12 mm half thickness, 7.5 cm along the
+    /// fingers, where the closing fingers wrap the can's rim from the far side and the
+    /// thumb from the near side. Measured with `cargo run --release -p teleop-sim
+    /// --example grasp_study` from the pick job's start posture, with the fingers'
+    /// targets of the power synergy and those the hand network sent in a run: the grasp
+    /// lifted and carried the can with its axis 6-9 cm along the fingers and 1 cm to
+    /// either side, its top from 0 to 1.5 cm below that point; 2 cm below, it tipped or
+    /// stayed behind.
     pub object_in_palm_m: [f64; 3],
-    /// The grasp is this far above the object's centre, m. Default 0.04 (the forearm
-    /// stays clear of the table).
+    /// The grasp puts that point this far above the object's centre, m. Default 0.1225:
+    /// the can's 11.5 cm half height and 7.5 mm, the middle of the window that held
+    /// (the can's height varies by 5 % per seed, +-6 mm at its top, which the operator
+    /// does not see).
     pub grasp_above_centre_m: f64,
     /// The pre-grasp pose and the retreat are this far back along the palm's back (the
     /// retreat also `lift_m` up), m. Default 0.08.
@@ -125,10 +135,10 @@ impl Default for WatchingConfig {
             object: "can".to_owned(),
             target_from_start_palm_xy_m: [0.1, 0.0],
             robot_from_operator_rpy_deg: [0.0; 3],
-            turn_to_face_object: true,
+            turn_to_face_object: false,
             turn_speed_deg_s: 14.0,
-            object_in_palm_m: [0.0, -0.052, 0.10],
-            grasp_above_centre_m: 0.04,
+            object_in_palm_m: [0.0, -0.017, 0.075],
+            grasp_above_centre_m: 0.1225,
             approach_m: 0.08,
             grasp_closure: 1.0,
             close_s: 2.5,
@@ -1326,7 +1336,10 @@ mod tests {
 
     impl Loop {
         fn new(views: bool, can_follows: bool) -> Self {
-            let cfg = WatchingConfig::default();
+            Self::with(WatchingConfig::default(), views, can_follows)
+        }
+
+        fn with(cfg: WatchingConfig, views: bool, can_follows: bool) -> Self {
             let start = Vector3::new(0.6, -0.2, TABLE_CAN_Z + 0.2);
             Self {
                 op: WatchingOperator::new(cfg, 1.0, 1.0).expect("valid"),
@@ -1485,45 +1498,56 @@ mod tests {
 
     #[test]
     fn the_operator_does_the_job_through_a_lagging_robot() {
-        let mut lp = Loop::new(true, true);
-        let log = lp.run(90.0);
-        let phases: Vec<&str> = log.iter().map(|d| d.phase.name()).collect();
-        assert_eq!(lp.op.phase(), Phase::Done, "{log:#?}");
-        for p in [
-            Phase::Turn,
-            Phase::Hover,
-            Phase::Approach,
-            Phase::Close,
-            Phase::Lift,
-            Phase::Carry,
-            Phase::Lower,
-            Phase::Release,
-            Phase::Retreat,
-            Phase::Return,
-        ] {
-            assert!(phases.contains(&p.name()), "{p:?} missing: {phases:?}");
+        // The default top grasp (the palm as it starts), and the side grasp (the hand
+        // turned to face the can).
+        let side = WatchingConfig {
+            turn_to_face_object: true,
+            object_in_palm_m: [0.0, -0.052, 0.10],
+            grasp_above_centre_m: 0.04,
+            ..WatchingConfig::default()
+        };
+        for (cfg, turn_deg) in [(WatchingConfig::default(), 0), (side, 90)] {
+            let mut lp = Loop::with(cfg, true, true);
+            let log = lp.run(90.0);
+            let phases: Vec<&str> = log.iter().map(|d| d.phase.name()).collect();
+            assert_eq!(lp.op.phase(), Phase::Done, "{log:#?}");
+            for p in [
+                Phase::Turn,
+                Phase::Hover,
+                Phase::Approach,
+                Phase::Close,
+                Phase::Lift,
+                Phase::Carry,
+                Phase::Lower,
+                Phase::Release,
+                Phase::Retreat,
+                Phase::Return,
+            ] {
+                assert!(phases.contains(&p.name()), "{p:?} missing: {phases:?}");
+            }
+            let target =
+                lp.start.xy() + Vector2Like::from(lp.op.config().target_from_start_palm_xy_m);
+            assert!(
+                (lp.can.xy() - target).norm() < 0.02,
+                "can at {:?}, target {target:?}",
+                lp.can
+            );
+            assert!(
+                (lp.palm - lp.start).norm() < 0.01,
+                "palm back: {:?} vs {:?}",
+                lp.palm,
+                lp.start
+            );
+            // The palm turned to face the can beside it (side grasp), and back.
+            let said = format!("turning the hand {turn_deg} deg");
+            assert!(
+                log.iter().any(|d| d.what.contains(&said)),
+                "{said}: {log:#?}"
+            );
+            assert!(lp.turn.angle() < 1e-6, "turned back: {}", lp.turn.angle());
+            assert_eq!(lp.op.counters().grasp_attempts, 1);
+            assert!(!lp.op.step(90.0).under_way, "clutch released at the end");
         }
-        let target = lp.start.xy() + Vector2Like::from(lp.op.config().target_from_start_palm_xy_m);
-        assert!(
-            (lp.can.xy() - target).norm() < 0.02,
-            "can at {:?}, target {target:?}",
-            lp.can
-        );
-        assert!(
-            (lp.palm - lp.start).norm() < 0.01,
-            "palm back: {:?} vs {:?}",
-            lp.palm,
-            lp.start
-        );
-        // The palm turned 90 deg to face the can beside it, and back.
-        assert!(
-            log.iter()
-                .any(|d| d.what.contains("turning the hand 90 deg")),
-            "{log:#?}"
-        );
-        assert!(lp.turn.angle() < 1e-6, "turned back: {}", lp.turn.angle());
-        assert_eq!(lp.op.counters().grasp_attempts, 1);
-        assert!(!lp.op.step(90.0).under_way, "clutch released at the end");
     }
 
     type Vector2Like = nalgebra::Vector2<f64>;
