@@ -1,6 +1,6 @@
 //! Searches a PR2 start posture for the pick job's grasp and room in every joint for the
 //! moves the job needs from there (12 cm forward and back, 15 cm toward the object, 8 cm
-//! down, 12 cm up, two diagonals; for the top grasp 15 cm down), each walked in 1 cm
+//! down, 12 cm up, three diagonals; for the top grasp 15 cm down), each walked in 1 cm
 //! steps of the tracking IK the arm controller runs. Side grasp: the palm facing
 //! sideways (world +y, turned by a yaw), the fingers level (or pitched). Top grasp
 //! (`top`): the palm facing down, the fingers level (or pitched) and forward, turned by

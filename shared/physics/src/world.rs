@@ -20,8 +20,8 @@
 //! friction are MuJoCo's. Finger gravity acts (the Shadow hand does not compensate it).
 //!
 //! **Contacts**: MuJoCo's soft constraints, elliptic friction cones, `impratio` 100
-//! ([`RobotParams::impratio`]) for grasps that do not creep; objects use `condim` 4 (torsional friction) so a pinched
-//! object does not spin. **BioTacs**: a touch sensor over each distal link's collision
+//! ([`RobotParams::impratio`]) for grasps that do not creep; objects use `condim` 4
+//! (torsional friction) so a pinched object does not spin. **BioTacs**: a touch sensor over each distal link's collision
 //! primitives (the sum of the normal forces of the contacts inside it), summed per
 //! finger.
 
@@ -271,7 +271,7 @@ pub fn world_mjcf(
     xml.push_str(&format!(
         "  <option timestep=\"{}\" integrator=\"implicitfast\" cone=\"elliptic\" impratio=\"{}\"/>\n",
         num(config.timestep_s),
-        num(config.robot.impratio)
+        num(p.impratio)
     ));
     xml.push_str("  <worldbody>\n");
     xml.push_str("    <light pos=\"0.5 0 3\" dir=\"0 0 -1\" directional=\"true\"/>\n");

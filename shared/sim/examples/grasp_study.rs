@@ -19,10 +19,13 @@
 //! 10), `GRASP_MAX_EFFORT` (N m, default 1), `GRASP_JITTER` (rad: the targets change
 //! every 1/30 s by up to this much, as the hand network's estimates do),
 //! `GRASP_TARGETS` (17 angles, rad: one more posture, e.g. what the hand network sent
-//! in a run), `GRASP_IMPRATIO` (MuJoCo's `impratio` instead of the default), `GRASP_FK=FILE` (instead: the palm's turn over a recorded run's arm joint
-//! states, lines of a time and 7 angles).
+//! in a run), `GRASP_IMPRATIO` (MuJoCo's `impratio` instead of the default),
+//! `GRASP_FK=FILE` (instead: the palm's turn over a recorded run's arm joint states,
+//! lines of a time and 7 angles).
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::{Isometry3, Point3, Vector3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 use teleop_hand_model::human::HumanHand;
 use teleop_hand_model::retarget::{RetargetSettings, Retargeter};
 use teleop_hand_model::sampling::Synergy;
@@ -30,19 +33,62 @@ use teleop_kinematics::robots;
 use teleop_physics::scene::{SceneSpec, TableSpec, can};
 use teleop_physics::world::{ARM_DOF, HAND_DOF, PhysicsConfig, PhysicsWorld, RobotParams};
 
-/// The hand's steady grasp loop: the adaptive controller's stiffness ends near its
-/// maximum against an object and its effort at the hold limit.
-/// `GRASP_KP` (N m/rad) and `GRASP_MAX_EFFORT` (N m) in the environment change them.
-fn gains() -> (f64, f64) {
-    let env = |name: &str, default: f64| {
-        std::env::var(name)
-            .ok()
-            .and_then(|v| v.parse::<f64>().ok())
-            .unwrap_or(default)
-    };
-    (env("GRASP_KP", 10.0), env("GRASP_MAX_EFFORT", 1.0))
-}
 const KD: f64 = 0.1;
+
+/// `name` from the environment as a number, or `default`.
+fn env_f64(name: &str, default: f64) -> f64 {
+    std::env::var(name)
+        .ok()
+        .and_then(|v| v.parse::<f64>().ok())
+        .unwrap_or(default)
+}
+
+/// The study's settings, read from the environment once.
+struct Settings {
+    /// The hand's steady grasp loop: the adaptive controller's stiffness ends near its
+    /// maximum against an object and its effort at the hold limit. N m/rad, N m.
+    kp: f64,
+    max_effort: f64,
+    /// The targets change every 1/30 s by up to this much, rad.
+    jitter: f64,
+    hold_s: f64,
+    robot: RobotParams,
+}
+
+impl Settings {
+    fn from_env() -> Self {
+        let mut robot = RobotParams::default();
+        robot.impratio = env_f64("GRASP_IMPRATIO", robot.impratio);
+        Self {
+            kp: env_f64("GRASP_KP", 10.0),
+            max_effort: env_f64("GRASP_MAX_EFFORT", 1.0),
+            jitter: env_f64("GRASP_JITTER", 0.0),
+            hold_s: env_f64("GRASP_HOLD_S", 10.0),
+            robot,
+        }
+    }
+}
+
+/// The palm's pose at arm posture `arm` (the robot's other joints neutral).
+fn palm_pose(
+    robot: &teleop_kinematics::Robot,
+    arm: &[f64; ARM_DOF],
+) -> anyhow::Result<Isometry3<f64>> {
+    let mut q = robot.neutral_positions();
+    for (i, name) in teleop_interfaces::joints::PR2_ARM_JOINTS.iter().enumerate() {
+        q[robot.dof_index(name)?] = arm[i];
+    }
+    let mut kin = robot.new_state();
+    robot.update(&mut kin, &q)?;
+    Ok(robot.link_pose(&kin, robot.link_id(robots::shadow::PALM)?))
+}
+
+/// How far an object's axis leans from the vertical, deg.
+fn tilt_deg(p: &Isometry3<f64>) -> f64 {
+    (p.rotation * Vector3::z())
+        .angle(&Vector3::z())
+        .to_degrees()
+}
 
 struct Candidate {
     name: String,
@@ -69,28 +115,16 @@ fn shadow_targets(
 
 fn run(
     robot: &teleop_kinematics::Robot,
+    settings: &Settings,
     c: &Candidate,
     open: &[f64; HAND_DOF],
     trace: bool,
 ) -> anyhow::Result<(String, f64)> {
-    let mut q = robot.neutral_positions();
-    for (i, name) in teleop_interfaces::joints::PR2_ARM_JOINTS.iter().enumerate() {
-        q[robot.dof_index(name)?] = c.arm[i];
-    }
-    let mut kin = robot.new_state();
-    robot.update(&mut kin, &q)?;
-    let palm = robot.link_pose(&kin, robot.link_id(robots::shadow::PALM)?);
+    let palm = palm_pose(robot, &c.arm)?;
     let centre = palm * Point3::from(Vector3::from(c.can_in_palm)) - Vector3::z() * c.below_m;
-    let top = centre.z - 0.115;
-    let mut robot_params = RobotParams::default();
-    if let Some(r) = std::env::var("GRASP_IMPRATIO")
-        .ok()
-        .and_then(|v| v.parse::<f64>().ok())
-    {
-        robot_params.impratio = r;
-    }
+    let top = centre.z - can("can", [0.0; 2], 0.0).shape.half_height_m();
     let config = PhysicsConfig {
-        robot: robot_params,
+        robot: settings.robot.clone(),
         scene: SceneSpec {
             table: Some(TableSpec {
                 top_z_m: top,
@@ -104,10 +138,6 @@ fn run(
         hand_initial_rad: *open,
     };
     let mut world = PhysicsWorld::new(robot, &config)?;
-    let jitter = std::env::var("GRASP_JITTER")
-        .ok()
-        .and_then(|v| v.parse::<f64>().ok())
-        .unwrap_or(0.0);
     if trace {
         let n = palm.rotation * -Vector3::y();
         let f = palm.rotation * Vector3::z();
@@ -118,27 +148,26 @@ fn run(
     }
     let can_pose = |w: &PhysicsWorld| w.object_poses()[0].1;
     let start = can_pose(&world);
-    let hold_s = std::env::var("GRASP_HOLD_S")
-        .ok()
-        .and_then(|v| v.parse::<f64>().ok())
-        .unwrap_or(10.0);
     let (close_s, lift_s, carry_s) = (2.5, 1.5, 1.5);
     let mut settled_after_close = None;
     let mut lifted = None;
-    let end_s = 0.3 + close_s + 0.5 + lift_s + carry_s + hold_s;
+    let end_s = 0.3 + close_s + 0.5 + lift_s + carry_s + settings.hold_s;
+    // The targets' frame-to-frame change, as the hand network's estimates (30 Hz).
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let mut noise = [0.0; HAND_DOF];
+    let mut frame = -1.0;
     while world.time_s() < end_s {
         let t = world.time_s();
         let s = ((t - 0.3) / close_s).clamp(0.0, 1.0);
-        // `GRASP_JITTER` (rad): the targets change every 1/30 s by up to this much, as the
-        // hand network's estimates do from frame to frame.
-        let frame = (t * 30.0).floor();
-        let target: [f64; HAND_DOF] = std::array::from_fn(|i| {
-            let h = ((frame * 97.0 + i as f64 * 13.0).sin() * 43_758.545).fract();
-            open[i] + (c.targets[i] - open[i]) * s + jitter * (2.0 * h.abs() - 1.0) * s
-        });
+        if (t * 30.0).floor() > frame {
+            frame = (t * 30.0).floor();
+            noise = std::array::from_fn(|_| settings.jitter * rng.random_range(-1.0..=1.0));
+        }
+        let target: [f64; HAND_DOF] =
+            std::array::from_fn(|i| open[i] + (c.targets[i] - open[i] + noise[i]) * s);
         let hq = world.hand_position();
         let hv = world.hand_velocity();
-        let (kp, max_effort) = gains();
+        let (kp, max_effort) = (settings.kp, settings.max_effort);
         let tau: [f64; HAND_DOF] = std::array::from_fn(|i| {
             (kp * (target[i] - hq[i]) - KD * hv[i]).clamp(-max_effort, max_effort)
         });
@@ -163,9 +192,7 @@ fn run(
                 d.x * 1e3,
                 d.y * 1e3,
                 d.z * 1e3,
-                (p.rotation * Vector3::z())
-                    .angle(&Vector3::z())
-                    .to_degrees(),
+                tilt_deg(&p),
                 local.x,
                 local.y,
                 local.z,
@@ -185,21 +212,16 @@ fn run(
     let closed = settled_after_close.unwrap_or(start);
     let lifted = lifted.unwrap_or(start);
     let end = can_pose(&world);
-    let tilt = |p: &nalgebra::Isometry3<f64>| {
-        (p.rotation * Vector3::z())
-            .angle(&Vector3::z())
-            .to_degrees()
-    };
     let push = (closed.translation.vector - start.translation.vector).norm() * 1000.0;
     let line = format!(
         "{:<44} closed: pushed {:5.1} mm tilt {:5.1} deg | lifted {:6.1} mm tilt {:5.1} | end rise {:6.1} mm tilt {:5.1}",
         c.name,
         push,
-        tilt(&closed),
+        tilt_deg(&closed),
         (lifted.translation.z - start.translation.z) * 1000.0,
-        tilt(&lifted),
+        tilt_deg(&lifted),
         (end.translation.z - start.translation.z) * 1000.0,
-        tilt(&end),
+        tilt_deg(&end),
     );
     Ok((line, end.translation.z - start.translation.z))
 }
@@ -216,13 +238,8 @@ fn palm_turns(robot: &teleop_kinematics::Robot, path: &str) -> anyhow::Result<()
         if v.len() != 8 {
             anyhow::bail!("{path}: expected a time and 7 angles per line: {line}");
         }
-        let mut q = robot.neutral_positions();
-        for (i, name) in teleop_interfaces::joints::PR2_ARM_JOINTS.iter().enumerate() {
-            q[robot.dof_index(name)?] = v[i + 1];
-        }
-        let mut kin = robot.new_state();
-        robot.update(&mut kin, &q)?;
-        let palm = robot.link_pose(&kin, robot.link_id(robots::shadow::PALM)?);
+        let arm: [f64; ARM_DOF] = std::array::from_fn(|i| v[i + 1]);
+        let palm = palm_pose(robot, &arm)?;
         let r0 = *first.get_or_insert(palm.rotation);
         let n = palm.rotation * -Vector3::y();
         let f = palm.rotation * Vector3::z();
@@ -249,6 +266,7 @@ fn main() -> anyhow::Result<()> {
     if let Ok(path) = std::env::var("GRASP_FK") {
         return palm_turns(&robot, &path);
     }
+    let settings = Settings::from_env();
     let hand = HumanHand::average();
     let retargeter = Retargeter::new(RetargetSettings::default())?;
     let open = shadow_targets(&hand, &retargeter, Synergy::Open, Synergy::Open, 0.0, 1.0)?;
@@ -327,7 +345,7 @@ fn main() -> anyhow::Result<()> {
             continue;
         }
         tried += 1;
-        match run(&robot, c, &open, only.is_some()) {
+        match run(&robot, &settings, c, &open, only.is_some()) {
             Ok((line, rise_m)) => {
                 // Held: still 10 cm up at the end of the hold.
                 if rise_m > 0.1 {

@@ -304,8 +304,8 @@ fn the_watching_operator_without_camera_views_waits_and_never_engages_the_arm() 
 /// (default seed): it sees the can in the views it received, reaches the top grasp by
 /// corrected submovements, closes the hand, lifts, carries, places the can and goes
 /// back: the judge (from ground truth, in the robot-site simulator) calls the job a
-/// success, having run on every tick without refusals. On this machine: a success in
-/// 23.4 s, and with two other seeds too (docs/physics.md, "The top grasp").
+/// success, having run on every tick without refusals. On this machine: a success with
+/// each of three seeds, in 23.3-23.5 s (docs/physics.md, "The top grasp").
 #[test]
 fn the_watching_operator_picks_and_places_the_can_through_the_shipped_nodes() {
     let _one = one_system();
