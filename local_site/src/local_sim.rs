@@ -145,6 +145,8 @@ pub struct LocalSimCounters {
     /// Depth frames with no keypoint of the hand in the image.
     pub frames_hand_out_of_view: u64,
     pub hardware_errors: u64,
+    /// Ticks that took more than 50 ms (each logged with where the time went).
+    pub slow_ticks: u64,
 }
 
 /// The simulator node.
@@ -483,11 +485,13 @@ impl Node for LocalSimNode {
             self.fail("world", "lock poisoned");
             return;
         };
+        let tick_started = std::time::Instant::now();
         // Catch up with the clock (at most 0.1 s per tick after a stall).
         let lag = (now_s - start) - world.time_s();
         if lag > 0.0 {
             world.step(lag.min(0.1));
         }
+        let world_ms = tick_started.elapsed().as_secs_f64() * 1e3;
         // The watching operator acts on what has reached the site so far.
         if let Some(watcher) = &mut self.watcher {
             let (sample, error) = watcher.step(now_s);
@@ -496,6 +500,7 @@ impl Node for LocalSimNode {
                 self.last_error = format!("operator's view: {e}");
             }
         }
+        let operator_ms = tick_started.elapsed().as_secs_f64() * 1e3 - world_ms;
         // Motion capture: every sample due since the last tick, each stamped with its
         // own capture time (a late tick does not change the capture rate).
         let period = world.mocap_period_s();
@@ -567,10 +572,22 @@ impl Node for LocalSimNode {
         {
             self.fail("ground truth", e);
         }
+        let depth_started = std::time::Instant::now();
         if self.camera_due.due(now_s)
             && let Err(e) = self.publish_depth(&mut world, now_s)
         {
             self.fail("depth camera", e);
+        }
+        let tick_ms = tick_started.elapsed().as_secs_f64() * 1e3;
+        if tick_ms > 50.0 {
+            self.counters.slow_ticks += 1;
+            tracing::warn!(
+                tick_ms,
+                world_ms,
+                operator_ms,
+                depth_ms = depth_started.elapsed().as_secs_f64() * 1e3,
+                "slow tick"
+            );
         }
     }
 
@@ -600,6 +617,7 @@ impl Node for LocalSimNode {
                 }),
             ),
             ("sim.hardware_errors".to_owned(), c.hardware_errors),
+            ("sim.slow_ticks".to_owned(), c.slow_ticks),
             ("mocap.samples".to_owned(), c.marker_samples),
             ("mocap.dropouts".to_owned(), c.marker_dropouts),
             ("mocap.glitches".to_owned(), c.marker_glitches),

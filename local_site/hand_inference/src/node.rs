@@ -172,6 +172,13 @@ pub struct HandInferenceConfig {
     pub pose_buffer_s: f64,
     /// The node turns inactive when no hand has been estimated for this long (s).
     pub no_hand_after_s: f64,
+    /// When the poses stop for a moment (the motion capture loses the markers for a
+    /// few hundred ms), the newest tracked centre, in the camera's frame, is used for
+    /// frames up to this long after it (s; 0: never). The camera arm keeps the hand
+    /// where it was in the camera's view, so this stays within millimetres where
+    /// the image fallback's centroid is centimetres off, and the network's estimate
+    /// with it (an open hand read from a closed one flung a held can away).
+    pub hold_tracked_centre_s: f64,
     /// Without a tracked centre, find the hand as the closest object in the image.
     pub image_fallback: bool,
     /// The image fallback's segmentation.
@@ -195,6 +202,7 @@ impl Default for HandInferenceConfig {
             max_pose_gap_s: 0.2,
             pose_buffer_s: 1.0,
             no_hand_after_s: 0.5,
+            hold_tracked_centre_s: 0.5,
             image_fallback: true,
             image_centre: ImageCentreConfig::default(),
             // On the depth frame's path to the hand (docs/local-site.md).
@@ -241,6 +249,14 @@ impl NodeConfig for HandInferenceConfig {
             return Err(format!(
                 "max_pose_extrapolation_s must be in [0, 0.5], got {}",
                 self.max_pose_extrapolation_s
+            ));
+        }
+        if !(self.hold_tracked_centre_s.is_finite()
+            && (0.0..=2.0).contains(&self.hold_tracked_centre_s))
+        {
+            return Err(format!(
+                "hold_tracked_centre_s must be in [0, 2], got {}",
+                self.hold_tracked_centre_s
             ));
         }
         if !(self.max_pose_gap_s.is_finite()
@@ -718,6 +734,9 @@ pub fn depth_from_image(
 pub enum CentreSource {
     /// The camera and wrist poses at the frame's stamp.
     Tracked,
+    /// The newest tracked centre, held through a short gap in the poses
+    /// (`hold_tracked_centre_s`).
+    Held,
     /// The closest object in the image.
     Image,
 }
@@ -760,6 +779,9 @@ pub struct InferenceCounters {
     pub no_hand: u64,
     /// Frames whose centre came from the camera and wrist poses.
     pub centre_tracked: u64,
+    /// Frames whose centre was the newest tracked one, held through a gap in the
+    /// poses.
+    pub centre_held: u64,
     /// Frames whose centre came from the image.
     pub centre_image: u64,
     /// Frames without a hand centre.
@@ -793,6 +815,7 @@ impl InferenceCounters {
             ("published", self.published),
             ("no_hand", self.no_hand),
             ("centre_tracked", self.centre_tracked),
+            ("centre_held", self.centre_held),
             ("centre_image", self.centre_image),
             ("no_centre", self.no_centre),
             ("rejected_encoding", self.rejected_encoding),
@@ -819,6 +842,9 @@ pub struct HandInferenceNode<M: JointModel> {
     max_pose_extrapolation_s: f64,
     max_pose_gap_s: f64,
     no_hand_after_s: f64,
+    hold_tracked_centre_s: f64,
+    /// The newest tracked centre (camera frame) and its frame's stamp.
+    last_tracked: Option<(f64, Point3<f64>)>,
     image_fallback: bool,
     image_centre: ImageCentreConfig,
     estimator: HandEstimator<M>,
@@ -876,6 +902,8 @@ impl<M: JointModel> HandInferenceNode<M> {
             max_pose_extrapolation_s: cfg.max_pose_extrapolation_s,
             max_pose_gap_s: cfg.max_pose_gap_s,
             no_hand_after_s: cfg.no_hand_after_s,
+            hold_tracked_centre_s: cfg.hold_tracked_centre_s,
+            last_tracked: None,
             image_fallback: cfg.image_fallback,
             image_centre: cfg.image_centre,
             estimator,
@@ -961,13 +989,20 @@ impl<M: JointModel> HandInferenceNode<M> {
     }
 
     /// The hand centre for a frame stamped `t`, and where it came from.
-    fn centre(&self, t: f64) -> Option<(Point3<f64>, CentreSource)> {
+    fn centre(&mut self, t: f64) -> Option<(Point3<f64>, CentreSource)> {
         let (ext, gap) = (self.max_pose_extrapolation_s, self.max_pose_gap_s);
         if let (Some(camera), Some(wrist)) = (
             self.camera_poses.at(t, ext, gap),
             self.wrist_poses.at(t, ext, gap),
         ) {
-            return Some((tracked_centre(&camera, &wrist), CentreSource::Tracked));
+            let centre = tracked_centre(&camera, &wrist);
+            self.last_tracked = Some((t, centre));
+            return Some((centre, CentreSource::Tracked));
+        }
+        if let Some((at, centre)) = self.last_tracked
+            && (t - at).abs() <= self.hold_tracked_centre_s
+        {
+            return Some((centre, CentreSource::Held));
         }
         if !self.image_fallback {
             return None;
@@ -996,6 +1031,7 @@ impl<M: JointModel> HandInferenceNode<M> {
         };
         match source {
             CentreSource::Tracked => self.counters.centre_tracked += 1,
+            CentreSource::Held => self.counters.centre_held += 1,
             CentreSource::Image => self.counters.centre_image += 1,
         }
         let started = Instant::now();

@@ -9,7 +9,7 @@ use std::time::Duration;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use teleop_bus::{Bus, BusConfig, Publisher, Subscriber};
 use teleop_hand_inference::node::{
-    self, FrameOutcome, HandInferenceConfig, HandInferenceNode, tracked_centre,
+    self, CentreSource, FrameOutcome, HandInferenceConfig, HandInferenceNode, tracked_centre,
 };
 use teleop_hand_inference::{DeterministicTestModel, HandEstimator};
 use teleop_hand_model::scene::HAND_CENTRE_IN_HAND_FRAME;
@@ -431,6 +431,66 @@ async fn stale_poses_fall_back_to_the_image() {
     check_targets(&got, &stamps);
     assert_eq!(rig.counter("hand_inference.centre_tracked"), 0);
     assert!(rig.counter("hand_inference.centre_image") >= 1);
+}
+
+/// The motion capture loses the markers for a moment: the frames in the gap keep the
+/// newest tracked centre (the camera arm holds the hand where it was in the view)
+/// instead of the image's centroid, which is centimetres off and moves the network's
+/// estimate; with the hold off they take the image's.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_short_gap_in_the_poses_holds_the_tracked_centre() {
+    for (domain, hold_s) in [(77, 2.0), (78, 0.0)] {
+        let cfg = HandInferenceConfig {
+            hold_tracked_centre_s: hold_s,
+            ..HandInferenceConfig::default()
+        };
+        let mut rig = Rig::new(domain, cfg, DeterministicTestModel::new(96)).await;
+        let frame = blob_frame(&rig.scene.centre_in_camera);
+        let (stamps, got) = rig.run_frames(&frame, 2, true).await;
+        check_targets(&got, &stamps);
+        let tracked = match rig.node.last_outcome() {
+            Some(FrameOutcome::Published {
+                centre_m,
+                source: CentreSource::Tracked,
+                ..
+            }) => *centre_m,
+            other => panic!("expected a tracked frame, got {other:?}"),
+        };
+        // The poses stop; the frames go on.
+        let (stamps, got) = rig.run_frames(&frame, 2, false).await;
+        check_targets(&got, &stamps);
+        match (hold_s > 0.0, rig.node.last_outcome()) {
+            (
+                true,
+                Some(FrameOutcome::Published {
+                    centre_m,
+                    source: CentreSource::Held,
+                    ..
+                }),
+            ) => assert_eq!(*centre_m, tracked),
+            (
+                false,
+                Some(FrameOutcome::Published {
+                    source: CentreSource::Image,
+                    ..
+                }),
+            ) => {}
+            other => panic!("hold {hold_s} s: {other:?}"),
+        }
+        let held = rig.counter("hand_inference.centre_held");
+        let image = rig.counter("hand_inference.centre_image");
+        if hold_s > 0.0 {
+            assert!(held >= 1 && image == 0, "held {held}, image {image}");
+        } else {
+            assert!(held == 0 && image >= 1, "held {held}, image {image}");
+        }
+    }
+    let bad = HandInferenceConfig {
+        hold_tracked_centre_s: f64::NAN,
+        ..HandInferenceConfig::default()
+    };
+    let err = bad.validate().expect_err("NaN refused");
+    assert!(err.contains("hold_tracked_centre_s"), "{err}");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

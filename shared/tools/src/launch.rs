@@ -16,7 +16,7 @@ use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
 use teleop_bus::{Bus, BusConfig, Subscriber};
 use teleop_interfaces::nodes::CAMERA_ARM;
-use teleop_interfaces::nodes::{NODES, NodeSpec};
+use teleop_interfaces::nodes::{NODES, NodeSpec, Site};
 use teleop_interfaces::topics;
 use teleop_local_site::camera_arm_node::CameraArmNodeConfig;
 use teleop_local_site::keyboard_panel::{KeyboardPanelConfig, TerminalMode};
@@ -90,6 +90,25 @@ pub struct LaunchArgs {
     /// the MuJoCo world) or `remote_sim.mujoco.perturbation.seed=7`.
     #[arg(long = "set", value_name = "NODE.KEY=VALUE")]
     pub set: Vec<String>,
+    /// Run the `--task` this many times, each on a seed of its own (the robot world's
+    /// objects and model mismatch, the operator site's world, the WAN's draws:
+    /// `--seed-base`, `--seed-base` + 1, ...), and sum the runs up as the thesis does:
+    /// success rate and completion time (mean, p90) beside the thesis's figures
+    /// (`summary.json`, `summary.png` in `--report-dir`, each run's report in
+    /// `seed-S/` there).
+    #[arg(long, requires = "task", value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub seeds: Option<u32>,
+    /// The first seed of `--seeds` (default 1000: the defaults were tuned on seeds
+    /// below 100, so these are held out).
+    #[arg(long, default_value_t = 1000, requires = "seeds")]
+    pub seed_base: u64,
+    /// Put an emulated WAN between the sites: each site's nodes are clients of a Zenoh
+    /// router of their own, and the routers are joined through the WAN link emulator
+    /// (as `deploy/compose` runs them, without TLS), with these settings:
+    /// `delay_ms` (one way), `jitter_ms`, `loss_pct`, `retransmit_ms`, `rate_mbit`,
+    /// `queue_ms`, e.g. `--wan delay_ms=25` for a 50 ms round trip.
+    #[arg(long, value_name = "SETTINGS", conflicts_with = "site")]
+    pub wan: Option<String>,
 }
 
 /// The `--set` overrides per node: `(node, KEY=VALUE)`.
@@ -352,7 +371,95 @@ impl StatusLog {
     }
 }
 
+/// The `--set` overrides that give one run of `--seeds` its seed: the robot world's
+/// objects and model mismatch, and the operator site's world (hand shape, noise, the
+/// UR5's perturbation).
+fn seed_sets(seed: u64) -> Vec<String> {
+    vec![
+        format!("remote_sim.mujoco.seed={seed}"),
+        format!("remote_sim.mujoco.perturbation.seed={seed}"),
+        format!("local_sim.operator_site.seed={seed}"),
+    ]
+}
+
 pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
+    let wan = args
+        .wan
+        .as_deref()
+        .map(crate::site_link::parse_wan)
+        .transpose()?;
+    let Some(n) = args.seeds else {
+        let (_, problem) = launch_once(&args, zenoh, wan, Vec::new(), 1, &args.report_dir).await?;
+        return problem.map_or(Ok(()), |p| Err(anyhow::anyhow!(p)));
+    };
+    let task = args.task.clone().context("--seeds needs --task")?;
+    // Ctrl-C / SIGTERM ends the run in progress (its nodes stop as usual) and the
+    // series: no further seeds.
+    let stopped = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let watcher = {
+        let stopped = stopped.clone();
+        tokio::spawn(async move {
+            teleop_node::stop_signal(None).await;
+            stopped.store(true, std::sync::atomic::Ordering::SeqCst);
+        })
+    };
+    let mut runs = Vec::new();
+    for seed in args.seed_base..args.seed_base + u64::from(n) {
+        if stopped.load(std::sync::atomic::Ordering::SeqCst) {
+            println!("stopped: {} of {n} runs done", runs.len());
+            break;
+        }
+        let dir = args.report_dir.join(format!("seed-{seed}"));
+        println!("\n== run {} of {n}: seed {seed}", runs.len() + 1);
+        let (report, error) = launch_once(&args, zenoh, wan, seed_sets(seed), seed, &dir).await?;
+        runs.push(crate::seeds::SeedRun {
+            seed,
+            job: report.job,
+            operator: report.operator,
+            error,
+            report_dir: dir,
+        });
+    }
+    watcher.abort();
+    let summary = crate::seeds::SeedsSummary::new(
+        &task,
+        wan.map(|w| crate::site_link::describe(&w)),
+        wan.map_or(0.0, |w| 2.0 * w.delay_ms),
+        runs,
+    );
+    println!();
+    print!("{}", summary.text());
+    if !args.no_report_files {
+        summary.write_files(&args.report_dir)?;
+    }
+    // A job that failed is a result; a run that went wrong is not.
+    let broken: Vec<String> = summary
+        .runs
+        .iter()
+        .filter_map(|r| Some(format!("seed {}: {}", r.seed, r.error.as_ref()?)))
+        .collect();
+    if !broken.is_empty() {
+        bail!("runs that went wrong: {}", broken.join("; "));
+    }
+    Ok(())
+}
+
+/// One run of the system: started, run until `--duration-s`, the task's end or
+/// Ctrl-C, stopped; its report printed and written into `report_dir`. `extra_sets`
+/// come after the task's own and before the command line's; `wan_seed` seeds the
+/// emulated WAN's draws. Returns the report and, when the run itself went wrong (a
+/// node exited early or did not stop gracefully), what did.
+///
+/// # Errors
+/// What kept the system from starting, or the report from being written.
+async fn launch_once(
+    args: &LaunchArgs,
+    zenoh: &ZenohArgs,
+    wan: Option<teleop_wan_link::Impairment>,
+    extra_sets: Vec<String>,
+    wan_seed: u64,
+    report_dir: &std::path::Path,
+) -> anyhow::Result<(crate::report::RunReport, Option<String>)> {
     // One simulated time for every process of the run (`--time-scale`).
     let mut zenoh = zenoh.clone();
     let paced_clock = if args.as_fast_as_possible {
@@ -369,18 +476,29 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
     };
     zenoh.pin_time_origin();
     let zenoh = &zenoh;
+    let link = match wan {
+        Some(w) => Some(crate::site_link::SiteLink::start(w, wan_seed, zenoh).await?),
+        None => None,
+    };
+    // Each process's bus arguments: with the emulated WAN, a client of its site's
+    // router (the launcher at the operator's site, where the report is taken).
+    let site_args = |site: Site| {
+        link.as_ref()
+            .map_or_else(|| zenoh.clone(), |l| l.site_args(zenoh, site))
+    };
     let mut cfg = BusConfig::default();
-    zenoh.apply(&mut cfg);
+    site_args(Site::Local).apply(&mut cfg);
     let bus = Bus::open(&format!("teleop_launch_{}", std::process::id()), &cfg).await?;
     let status = bus.subscriber(&topics::NODE_STATUS).await?;
     let mut log = StatusLog::default();
 
     let mut sets = task_sets(args.task.as_deref());
+    sets.extend(extra_sets);
     sets.extend(args.set.iter().cloned());
     let overrides = node_overrides(&sets)?;
-    ensure_onnx_runtime(&args).await?;
-    let sim_config = local_sim_config(&args)?;
-    let (display_config, display_listen) = display_config(&args)?;
+    ensure_onnx_runtime(args).await?;
+    let sim_config = local_sim_config(args)?;
+    let (display_config, display_listen) = display_config(args)?;
     let task_name = match &sim_config {
         Some((_, t)) => t.clone(),
         None => match &args.config_dir {
@@ -397,13 +515,13 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         },
     };
     let keyboard_config = if args.keyboard {
-        Some(keyboard_wrist_tracker_config(&args)?)
+        Some(keyboard_wrist_tracker_config(args)?)
     } else {
         None
     };
     // The camera is judged against the goal of the camera arm's settings as this run
     // starts it (its --config-dir file or defaults, with its --set overrides).
-    let camera: CameraArmNodeConfig = shipped_or_default(&args, CAMERA_ARM)?;
+    let camera: CameraArmNodeConfig = shipped_or_default(args, CAMERA_ARM)?;
     let camera = teleop_node::config::apply_overrides(&camera, &sets_for(&overrides, CAMERA_ARM))?;
     let mut recorder = Recorder::new(&bus, &task_name, "teleop launch", camera.camera_arm).await?;
     let mut children: Vec<(&'static NodeSpec, Child)> = Vec::new();
@@ -435,7 +553,7 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         for set in sets_for(&overrides, spec.name) {
             cmd.arg("--set").arg(set);
         }
-        cmd.args(zenoh.to_args());
+        cmd.args(site_args(spec.site).to_args());
         if args.no_realtime {
             cmd.args(["--realtime-priority", "0"]);
         }
@@ -451,11 +569,14 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         children.push((spec, child));
     }
     let mut banner = vec![format!(
-        "teleop launch: {} nodes{}",
+        "teleop launch: {} nodes{}{}",
         children.len(),
         args.task
             .as_deref()
             .map(|t| format!(", task {t}"))
+            .unwrap_or_default(),
+        link.as_ref()
+            .map(|l| format!("; {}", crate::site_link::describe(&l.link())))
             .unwrap_or_default()
     )];
     if !display_listen.is_empty()
@@ -568,25 +689,28 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         // is judged in real time only).
         report.goals = report.judge_goals();
     }
+    report.wan = link.as_ref().map(|l| crate::site_link::describe(&l.link()));
     println!();
     print!("{}", report.text());
     if !args.no_report_files {
-        report.write_files(&args.report_dir)?;
+        report.write_files(report_dir)?;
     }
     drop(status);
     bus.close().await?;
-    if let Some((name, exit)) = early {
-        bail!("node {name} exited early: {exit}");
+    if let Some(l) = link {
+        l.stop().await;
     }
     let bad: Vec<&str> = outcomes
         .iter()
         .filter(|o| !o.graceful || o.final_status.is_none())
         .map(|o| o.name)
         .collect();
-    if !bad.is_empty() {
-        bail!("not stopped gracefully: {}", bad.join(", "));
-    }
-    Ok(())
+    let problem = match early {
+        Some((name, exit)) => Some(format!("node {name} exited early: {exit}")),
+        None if !bad.is_empty() => Some(format!("not stopped gracefully: {}", bad.join(", "))),
+        None => None,
+    };
+    Ok((report, problem))
 }
 
 /// Completes at simulated time `end_s` on `clock` (never without one), or on Ctrl-C /

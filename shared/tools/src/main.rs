@@ -13,6 +13,8 @@ mod publish;
 mod record;
 mod report;
 mod router;
+mod seeds;
+mod site_link;
 mod sweep;
 
 use clap::{Parser, Subcommand};
@@ -76,6 +78,10 @@ enum Command {
     /// The WAN-condition sweep's table, plots and checks, from what
     /// deploy/compose/sweep.sh recorded.
     SweepReport(sweep::SweepArgs),
+    /// Success rate and completion time against the WAN's round trip, from the
+    /// summaries of `teleop launch --task T --seeds N --wan ...` (one per condition):
+    /// a Markdown table and a picture.
+    SeedsPlot(seeds::SeedsPlotArgs),
 }
 
 #[derive(Debug, Subcommand)]
@@ -152,6 +158,7 @@ async fn main() -> anyhow::Result<()> {
         Command::Node(NodeCommand::List { wait_s }) => inspect::node_list(&bus_cfg, wait_s).await,
         Command::Monitor { duration_s } => inspect::monitor(&bus_cfg, None, duration_s).await,
         Command::Launch(args) => launch::launch(args, &cli.zenoh).await,
+        Command::SeedsPlot(args) => seeds::plot(&args),
         Command::Router(args) => router::run(args, &cli.zenoh).await,
         Command::Report(args) => record::run(args, &cli.zenoh).await,
         Command::Certs(args) => certs::run(args),

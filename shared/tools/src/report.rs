@@ -208,6 +208,8 @@ pub struct RunReport {
     /// Simulated seconds (wall seconds x `time_scale`).
     pub duration_s: f64,
     pub task: String,
+    /// The emulated WAN between the sites (`teleop launch --wan`), if the run had one.
+    pub wan: Option<String>,
     /// Simulated seconds per wall second (`--time-scale`; 1 = real time). Every time
     /// and latency in the report is in simulated time.
     pub time_scale: f64,
@@ -1005,6 +1007,9 @@ impl RunReport {
             self.duration_s,
             self.time_scale_note()
         );
+        if let Some(wan) = &self.wan {
+            let _ = writeln!(s, "{wan}");
+        }
         let _ = writeln!(
             s,
             "latency (capture -> received here)      samples    p50 ms    p99 ms    max ms"

@@ -330,6 +330,96 @@ fn the_watching_operator_picks_and_places_the_can_through_the_shipped_nodes() {
     assert_eq!(op["phase"], "done", "{op}");
 }
 
+/// `--seeds 1 --wan delay_ms=25`: the pick job with each site behind a router of its
+/// own and the WAN link emulator between them (a 50 ms round trip), run on a held-out
+/// seed and summed up beside the thesis's figures. The feedback reaches the operator's
+/// site through the link (its latency there is at least the one-way delay), the
+/// operator still sees enough of the robot to lift the can, and the summary counts
+/// the judge's verdict. On this machine: docs/physics.md, "Success rate and time".
+#[test]
+fn a_seeded_pick_through_an_emulated_wan_is_summed_up_beside_the_thesis() {
+    let _one = one_system();
+    let dir = std::env::temp_dir().join(format!("teleop-seeds-test-{}", std::process::id()));
+    let mut args: Vec<&std::ffi::OsStr> = [
+        "--domain-id",
+        "114",
+        "launch",
+        "--quiet",
+        "--task",
+        "pick",
+        "--duration-s",
+        "70",
+        "--seeds",
+        "1",
+        "--seed-base",
+        "1005",
+        "--wan",
+        "delay_ms=25",
+        "--report-dir",
+    ]
+    .map(std::ffi::OsStr::new)
+    .to_vec();
+    args.push(dir.as_os_str());
+    let stdout = launch_ok(&args);
+    assert_every_node_stopped_gracefully(&stdout);
+    let read = |p: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(p).expect("written")).expect("parses")
+    };
+    let summary = read(&dir.join("summary.json"));
+    assert!(dir.join("summary.png").is_file());
+    assert_eq!(summary["round_trip_ms"], 50.0, "{summary}");
+    assert_eq!(
+        summary["runs"].as_array().map(Vec::len),
+        Some(1),
+        "{summary}"
+    );
+    assert_eq!(summary["runs"][0]["seed"], 1005, "{summary}");
+    assert_eq!(
+        summary["thesis"].as_array().map(Vec::len),
+        Some(2),
+        "{summary}"
+    );
+    let report = read(&dir.join("seed-1005").join("report.json"));
+    assert!(
+        report["wan"]
+            .as_str()
+            .is_some_and(|w| w.contains("round trip 50 ms")),
+        "{}",
+        report["wan"]
+    );
+    // The robot's joint states come across the link: half the round trip at least.
+    let feedback = report["latency"]
+        .as_array()
+        .and_then(|l| l.iter().find(|s| s["stage"] == "PR2 joints -> feedback"))
+        .unwrap_or_else(|| panic!("no feedback stage: {}", report["latency"]));
+    assert!(
+        feedback["samples"].as_u64().is_some_and(|n| n > 1000),
+        "{feedback}"
+    );
+    assert!(
+        feedback["p50_ms"].as_f64().is_some_and(|ms| ms >= 25.0),
+        "the feedback did not cross the emulated WAN: {feedback}"
+    );
+    assert!(
+        report["operator"]["robot_percepts"]
+            .as_u64()
+            .is_some_and(|n| n > 1000),
+        "{}",
+        report["operator"]
+    );
+    assert_eq!(report["job"]["lifted"], true, "{}", report["job"]);
+    // The summary counts what the judge said (at 50 ms this seed's can was placed in
+    // most runs here, not in all: docs/physics.md gives the rate over ten seeds).
+    let succeeded = report["job"]["succeeded"].as_bool().expect("judged");
+    assert_eq!(summary["succeeded"], u64::from(succeeded), "{summary}");
+    assert_eq!(
+        summary["success_pct"],
+        if succeeded { 100.0 } else { 0.0 },
+        "{summary}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// The nodes whose configs ask for real-time scheduling by default: the depth frame's
 /// path to the hand (docs/local-site.md).
 const REALTIME_BY_DEFAULT: [&str; 3] = ["hand_inference", "local_sim", "shadow_hand_controller"];
