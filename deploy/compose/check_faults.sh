@@ -77,7 +77,14 @@ for s in "${SERVICES[@]}"; do
   others_down=()
   for o in "${ALL[@]}"; do
     [[ $o == "$s" ]] && continue
-    printf '%s\n' "${running[@]}" | grep -qx "$o" || others_down+=("$o")
+    printf '%s\n' "${running[@]}" | grep -qx "$o" && continue
+    # Not in the list: asked of the engine for that container itself (`docker ps` left
+    # out pc1-hand-inference once while its node's statuses went on at 1 Hz: a CI run
+    # here, 2026-12-06). There is no restart policy: a container that died stays down.
+    oid=$(docker ps -aq --filter "label=com.docker.compose.project=$COMPOSE_PROJECT_NAME" \
+      --filter "label=com.docker.compose.service=$o" | head -1)
+    [[ -n $oid && "$(docker inspect -f '{{.State.Running}}' "$oid" 2>/dev/null)" == true ]] \
+      || others_down+=("$o")
   done
   t_start=$(date +%s.%N)
   docker start "$id" >/dev/null
