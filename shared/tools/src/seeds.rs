@@ -312,24 +312,10 @@ impl SeedsSummary {
                 .label(format!("mean over the successes: {mean:.1} s"))
                 .legend(|(x, y)| PathElement::new([(x, y), (x + 14, y)], BLACK.stroke_width(2)));
         }
-        let colours = [BLUE, MAGENTA, CYAN];
-        for (c, colour) in self.thesis.iter().zip(colours) {
-            chart
-                .draw_series(DashedLineSeries::new(
-                    hline(c.thesis.time_s),
-                    10,
-                    6,
-                    colour.stroke_width(2),
-                ))
-                .map_err(|x| e(&x))?
-                .label(format!(
-                    "thesis {}: {:.1} s",
-                    c.thesis.source, c.thesis.time_s
-                ))
-                .legend(move |(x, y)| {
-                    PathElement::new([(x, y), (x + 14, y)], colour.stroke_width(2))
-                });
-        }
+        let figures: Vec<ThesisFigure> = self.thesis.iter().map(|c| c.thesis).collect();
+        thesis_lines(&mut chart, &figures, (-0.5, n as f64 - 0.5), |f| {
+            (f.time_s, format!("{:.1} s", f.time_s))
+        })?;
         chart
             .configure_series_labels()
             .position(SeriesLabelPosition::UpperLeft)
@@ -341,6 +327,41 @@ impl SeedsSummary {
         root.present().map_err(|x| e(&x))?;
         Ok(())
     }
+}
+
+/// A chart of this module: f64 against f64, drawn into a bitmap.
+type Chart<'a, 'b> = plotters::chart::ChartContext<
+    'a,
+    plotters::backend::BitMapBackend<'b>,
+    plotters::coord::cartesian::Cartesian2d<
+        plotters::coord::types::RangedCoordf64,
+        plotters::coord::types::RangedCoordf64,
+    >,
+>;
+
+/// The thesis's figures as dashed horizontal lines from `x0` to `x1`, each at the
+/// value `value` picks, labelled `thesis SOURCE: <label>`.
+fn thesis_lines(
+    chart: &mut Chart<'_, '_>,
+    thesis: &[ThesisFigure],
+    (x0, x1): (f64, f64),
+    value: impl Fn(&ThesisFigure) -> (f64, String),
+) -> anyhow::Result<()> {
+    use plotters::prelude::*;
+    for (f, colour) in thesis.iter().zip([BLUE, MAGENTA, CYAN]) {
+        let (y, label) = value(f);
+        chart
+            .draw_series(DashedLineSeries::new(
+                [(x0, y), (x1, y)],
+                10,
+                6,
+                colour.stroke_width(2),
+            ))
+            .map_err(|e| anyhow::anyhow!("{e}"))?
+            .label(format!("thesis {}: {label}", f.source))
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 14, y)], colour.stroke_width(2)));
+    }
+    Ok(())
 }
 
 /// `teleop seeds-plot`: several `--seeds` summaries (one per WAN condition) as a
@@ -445,8 +466,6 @@ fn draw_vs_round_trip(task: &str, conditions: &[Condition], path: &Path) -> anyh
         .fold(50.0_f64, f64::max)
         * 1.1;
     let thesis = thesis_figures(task);
-    let colours = [BLUE, MAGENTA, CYAN];
-    let hline = |v: f64| vec![(0.0, v), (x_max, v)];
     // Success rate.
     let mut chart = ChartBuilder::on(&left)
         .caption("success rate", ("sans-serif", 20))
@@ -473,18 +492,9 @@ fn draw_vs_round_trip(task: &str, conditions: &[Condition], path: &Path) -> anyh
     chart
         .draw_series(pts.iter().map(|&p| Circle::new(p, 6, GREEN.filled())))
         .map_err(|x| e(&x))?;
-    for (f, colour) in thesis.iter().zip(colours) {
-        chart
-            .draw_series(DashedLineSeries::new(
-                hline(f.success_pct),
-                10,
-                6,
-                colour.stroke_width(2),
-            ))
-            .map_err(|x| e(&x))?
-            .label(format!("thesis {}: {:.0} %", f.source, f.success_pct))
-            .legend(move |(x, y)| PathElement::new([(x, y), (x + 14, y)], colour.stroke_width(2)));
-    }
+    thesis_lines(&mut chart, thesis, (0.0, x_max), |f| {
+        (f.success_pct, format!("{:.0} %", f.success_pct))
+    })?;
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::LowerLeft)
@@ -534,18 +544,9 @@ fn draw_vs_round_trip(task: &str, conditions: &[Condition], path: &Path) -> anyh
         .map_err(|x| e(&x))?
         .label("90th percentile")
         .legend(|(x, y)| PathElement::new([(x, y), (x + 14, y)], RED.stroke_width(2)));
-    for (f, colour) in thesis.iter().zip(colours) {
-        chart
-            .draw_series(DashedLineSeries::new(
-                hline(f.time_s),
-                10,
-                6,
-                colour.stroke_width(2),
-            ))
-            .map_err(|x| e(&x))?
-            .label(format!("thesis {}: {:.1} s", f.source, f.time_s))
-            .legend(move |(x, y)| PathElement::new([(x, y), (x + 14, y)], colour.stroke_width(2)));
-    }
+    thesis_lines(&mut chart, thesis, (0.0, x_max), |f| {
+        (f.time_s, format!("{:.1} s", f.time_s))
+    })?;
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::LowerRight)
