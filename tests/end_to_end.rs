@@ -9,6 +9,7 @@ use teleop_interfaces::topics;
 use teleop_local_site::wrist_tracker::{self, WristTrackerConfig};
 use teleop_msgs::Lifecycle;
 use teleop_sim::operator::SimulatedOperatorConfig;
+use teleop_system_tests::simulated_operator;
 use teleop_system_tests::{free_port, isolated_pair};
 
 /// One system of nodes at a time: each test runs a simulator, controllers and 320 Hz
@@ -47,17 +48,20 @@ async fn wrist_tracker_publishes_ground_truth_poses_inputs_and_status() {
         ..Default::default()
     };
     let cfg = WristTrackerConfig {
-        source: wrist_tracker::TrackerSource::Simulated,
-        panel: wrist_tracker::PanelSource::Simulated,
+        source: wrist_tracker::TrackerSource::InProcess,
+        panel: wrist_tracker::PanelSource::InProcess,
         bus: node_bus,
-        operator: operator.clone(),
         ..Default::default()
     };
     let probe = Bus::open("probe", &probe_bus).await.unwrap();
     let poses = probe.subscriber(&topics::WRIST_POSE).await.unwrap();
     let inputs = probe.subscriber(&topics::OPERATOR_INPUT).await.unwrap();
     let status = probe.subscriber(&topics::NODE_STATUS).await.unwrap();
-    let node = tokio::spawn(wrist_tracker::run(cfg, Some(Duration::from_secs(3))));
+    let node = tokio::spawn(wrist_tracker::run_with_devices(
+        cfg,
+        simulated_operator(&operator, true),
+        Some(Duration::from_secs(3)),
+    ));
 
     let mut n_poses = 0;
     let mut max_dev: f64 = 0.0;
@@ -196,7 +200,7 @@ async fn wrist_tracker_drives_the_simulated_pr2_arm_through_the_clutch() {
     use teleop_hardware::wire;
     use teleop_remote_site::arm_node::{self, ArmNodeConfig};
     use teleop_remote_site::feedback_node::{self, FeedbackConfig};
-    use teleop_remote_site::sim_node::{self, SimNodeConfig};
+    use teleop_sim_nodes::remote_sim::{self, SimNodeConfig};
 
     let port = free_port().unwrap();
     let (hub, spoke) = isolated_pair(22, port);
@@ -210,22 +214,22 @@ async fn wrist_tracker_drives_the_simulated_pr2_arm_through_the_clutch() {
         bus: spoke.clone(),
         ..Default::default()
     };
+    let tracker_operator = SimulatedOperatorConfig {
+        clutch_delay_s: 2.5,
+        speed_m_s: 0.05,
+        ..Default::default()
+    };
     let tracker = WristTrackerConfig {
-        source: wrist_tracker::TrackerSource::Simulated,
-        panel: wrist_tracker::PanelSource::Simulated,
+        source: wrist_tracker::TrackerSource::InProcess,
+        panel: wrist_tracker::PanelSource::InProcess,
         bus: spoke.clone(),
-        operator: SimulatedOperatorConfig {
-            clutch_delay_s: 2.5,
-            speed_m_s: 0.05,
-            ..Default::default()
-        },
         ..Default::default()
     };
     let feedback = FeedbackConfig {
         bus: spoke.clone(),
         ..Default::default()
     };
-    let sim_task = tokio::spawn(sim_node::run(sim, Some(Duration::from_secs(10))));
+    let sim_task = tokio::spawn(remote_sim::run(sim, Some(Duration::from_secs(10))));
     let feedback_task = tokio::spawn(feedback_node::run(feedback, Some(Duration::from_secs(9))));
     tokio::time::sleep(Duration::from_millis(300)).await;
     let probe = Bus::open("probe", &spoke).await.unwrap();
@@ -237,7 +241,11 @@ async fn wrist_tracker_drives_the_simulated_pr2_arm_through_the_clutch() {
         .await
         .unwrap();
     let arm_task = tokio::spawn(arm_node::run(arm, Some(Duration::from_secs(9))));
-    let tracker_task = tokio::spawn(wrist_tracker::run(tracker, Some(Duration::from_secs(9))));
+    let tracker_task = tokio::spawn(wrist_tracker::run_with_devices(
+        tracker,
+        simulated_operator(&tracker_operator, true),
+        Some(Duration::from_secs(9)),
+    ));
     let t_start = probe.now_s();
 
     // Before the clutch (t < 2.5 s): the arm does not move.
@@ -307,14 +315,14 @@ async fn wrist_tracker_drives_the_simulated_pr2_arm_through_the_clutch() {
 async fn a_second_operator_site_is_refused_and_reported_never_blended() {
     let _one = ONE_SYSTEM.lock().await;
     use teleop_remote_site::arm_node::{self, ArmNodeConfig};
-    use teleop_remote_site::sim_node::{self, SimNodeConfig};
+    use teleop_sim_nodes::remote_sim::{self, SimNodeConfig};
 
     let (hub, spoke) = isolated_pair(24, free_port().unwrap());
     let sim = SimNodeConfig {
         bus: hub,
         ..Default::default()
     };
-    let sim_task = tokio::spawn(sim_node::run(sim, Some(Duration::from_secs(11))));
+    let sim_task = tokio::spawn(remote_sim::run(sim, Some(Duration::from_secs(11))));
     tokio::time::sleep(Duration::from_millis(300)).await;
     let probe = Bus::open("probe", &spoke).await.unwrap();
     let states = probe.subscriber(&topics::HW_PR2_ARM_STATE).await.unwrap();
@@ -327,36 +335,44 @@ async fn a_second_operator_site_is_refused_and_reported_never_blended() {
         ..Default::default()
     };
     let arm_task = tokio::spawn(arm_node::run(arm, Some(Duration::from_secs(10))));
-    let first = WristTrackerConfig {
-        source: wrist_tracker::TrackerSource::Simulated,
-        panel: wrist_tracker::PanelSource::Simulated,
-        bus: spoke.clone(),
-        operator: SimulatedOperatorConfig {
-            clutch_delay_s: 1.0,
-            ..Default::default()
-        },
+    let first_operator = SimulatedOperatorConfig {
+        clutch_delay_s: 1.0,
         ..Default::default()
     };
-    let first_task = tokio::spawn(wrist_tracker::run(first, Some(Duration::from_secs(10))));
+    let first = WristTrackerConfig {
+        source: wrist_tracker::TrackerSource::InProcess,
+        panel: wrist_tracker::PanelSource::InProcess,
+        bus: spoke.clone(),
+        ..Default::default()
+    };
+    let first_task = tokio::spawn(wrist_tracker::run_with_devices(
+        first,
+        simulated_operator(&first_operator, true),
+        Some(Duration::from_secs(10)),
+    ));
     let t_start = probe.now_s();
     let mut trace = Trace::default();
     record(&mut trace, &states, &poses, Duration::from_millis(3500)).await;
     // The second station: another square elsewhere, its clutch pressed at once.
-    let second = WristTrackerConfig {
-        source: wrist_tracker::TrackerSource::Simulated,
-        panel: wrist_tracker::PanelSource::Simulated,
-        node_name: "wrist_tracker_b".into(),
-        bus: spoke.clone(),
-        operator: SimulatedOperatorConfig {
-            seed: 99,
-            center_m: [0.3, 0.2, 0.5],
-            speed_m_s: 0.08,
-            clutch_delay_s: 0.0,
-            ..Default::default()
-        },
+    let second_operator = SimulatedOperatorConfig {
+        seed: 99,
+        center_m: [0.3, 0.2, 0.5],
+        speed_m_s: 0.08,
+        clutch_delay_s: 0.0,
         ..Default::default()
     };
-    let second_task = tokio::spawn(wrist_tracker::run(second, Some(Duration::from_secs(5))));
+    let second = WristTrackerConfig {
+        source: wrist_tracker::TrackerSource::InProcess,
+        panel: wrist_tracker::PanelSource::InProcess,
+        node_name: "wrist_tracker_b".into(),
+        bus: spoke.clone(),
+        ..Default::default()
+    };
+    let second_task = tokio::spawn(wrist_tracker::run_with_devices(
+        second,
+        simulated_operator(&second_operator, true),
+        Some(Duration::from_secs(5)),
+    ));
     let t_join = probe.now_s();
     // Only the first tracker's poses describe the operator the arm should follow.
     let mut during = Trace::default();
@@ -420,10 +436,10 @@ fn small_views_sim_and_feedback(
     hub: teleop_bus::BusConfig,
     spoke: &teleop_bus::BusConfig,
 ) -> (
-    teleop_remote_site::sim_node::SimNodeConfig,
+    teleop_sim_nodes::remote_sim::SimNodeConfig,
     teleop_remote_site::feedback_node::FeedbackConfig,
 ) {
-    let sim = teleop_remote_site::sim_node::SimNodeConfig {
+    let sim = teleop_sim_nodes::remote_sim::SimNodeConfig {
         bus: hub,
         cameras: teleop_sim::CameraViewsConfig {
             width_px: 160,
@@ -445,7 +461,8 @@ fn small_views_sim_and_feedback(
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn remote_camera_views_reach_the_operator_site() {
     let _one = ONE_SYSTEM.lock().await;
-    use teleop_remote_site::{feedback_node, sim_node};
+    use teleop_remote_site::feedback_node;
+    use teleop_sim_nodes::remote_sim;
 
     let (hub, spoke) = isolated_pair(23, free_port().unwrap());
     let (sim, feedback) = small_views_sim_and_feedback(hub, &spoke);
@@ -453,7 +470,7 @@ async fn remote_camera_views_reach_the_operator_site() {
     let top = probe.subscriber(&topics::REMOTE_CAMERA_TOP).await.unwrap();
     let side = probe.subscriber(&topics::REMOTE_CAMERA_SIDE).await.unwrap();
     let status = probe.subscriber(&topics::NODE_STATUS).await.unwrap();
-    let sim_task = tokio::spawn(sim_node::run(sim, Some(Duration::from_secs(4))));
+    let sim_task = tokio::spawn(remote_sim::run(sim, Some(Duration::from_secs(4))));
     let feedback_task = tokio::spawn(feedback_node::run(
         feedback,
         Some(Duration::from_millis(3500)),
@@ -514,7 +531,8 @@ async fn remote_camera_views_reach_the_operator_site() {
 async fn the_operator_display_acknowledges_the_views_and_the_publisher_paces_by_them() {
     let _one = ONE_SYSTEM.lock().await;
     use teleop_local_site::operator_display::{self, OperatorDisplayConfig};
-    use teleop_remote_site::{feedback_node, sim_node};
+    use teleop_remote_site::feedback_node;
+    use teleop_sim_nodes::remote_sim;
 
     let (hub, spoke) = isolated_pair(25, free_port().unwrap());
     let (sim, feedback) = small_views_sim_and_feedback(hub, &spoke);
@@ -528,7 +546,7 @@ async fn the_operator_display_acknowledges_the_views_and_the_publisher_paces_by_
         .publisher(&topics::REMOTE_CAMERA_RECEIPTS)
         .await
         .unwrap();
-    let sim_task = tokio::spawn(sim_node::run(sim, Some(Duration::from_secs(6))));
+    let sim_task = tokio::spawn(remote_sim::run(sim, Some(Duration::from_secs(6))));
     let (feedback_done, feedback_ended) = tokio::sync::oneshot::channel::<()>();
     let feedback_task = tokio::spawn(async move {
         let sent = feedback_node::run(feedback, Some(Duration::from_millis(5500))).await;

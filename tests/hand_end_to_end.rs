@@ -13,7 +13,7 @@ use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 use teleop_interfaces::topics;
 use teleop_msgs::{Header, JointState, OperatorInput, Time, unix_nanos_now};
 use teleop_remote_site::hand_node::{self, HandNodeConfig};
-use teleop_remote_site::sim_node::{self, SceneKind, SimNodeConfig};
+use teleop_sim_nodes::remote_sim::{self, SceneKind, SimNodeConfig};
 use teleop_system_tests::{free_port, isolated_pair};
 
 fn stamp() -> Header {
@@ -49,7 +49,7 @@ async fn the_hand_node_follows_with_enable_and_holds_when_targets_stop() {
         bus: spoke.clone(),
         ..Default::default()
     };
-    let sim_task = tokio::spawn(sim_node::run(sim, Some(Duration::from_secs(9))));
+    let sim_task = tokio::spawn(remote_sim::run(sim, Some(Duration::from_secs(9))));
     tokio::time::sleep(Duration::from_millis(300)).await;
     let hand_task = tokio::spawn(hand_node::run(hand, Some(Duration::from_secs(8))));
 

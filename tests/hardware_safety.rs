@@ -15,7 +15,7 @@ use teleop_hardware::{ArmCommand, HandCommand, wire};
 use teleop_interfaces::joints::PR2_ARM_JOINTS;
 use teleop_interfaces::topics;
 use teleop_msgs::JointState;
-use teleop_remote_site::sim_node::{self, SimNodeConfig, SimSafetyConfig};
+use teleop_sim_nodes::remote_sim::{self, SimNodeConfig, SimSafetyConfig};
 use teleop_system_tests::{free_port, isolated_pair};
 
 /// Publishes `arm` and `hand` (those given) at 100 Hz for `duration` while collecting
@@ -79,7 +79,7 @@ async fn raw_over_limit_commands_are_refused_or_limited_and_counted() {
         bus: hub,
         ..Default::default()
     };
-    let sim_task = tokio::spawn(sim_node::run(sim, Some(Duration::from_secs(9))));
+    let sim_task = tokio::spawn(remote_sim::run(sim, Some(Duration::from_secs(9))));
     tokio::time::sleep(Duration::from_millis(300)).await;
     let probe = Bus::open("probe", &spoke).await.unwrap();
     let arm_states = probe.subscriber(&topics::HW_PR2_ARM_STATE).await.unwrap();

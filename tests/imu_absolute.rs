@@ -19,8 +19,9 @@ use teleop_local_site::tracking::imu_arm::{ImuArmConfig, ImuArmMapping};
 use teleop_local_site::wrist_tracker::{self, WristTrackerConfig};
 use teleop_remote_site::arm_controller::{AbsoluteConfig, ArmControllerConfig, ArmMode};
 use teleop_remote_site::arm_node::{self, ArmNodeConfig};
-use teleop_remote_site::sim_node::{self, SceneKind, SimNodeConfig};
 use teleop_sim::operator::SimulatedOperatorConfig;
+use teleop_sim_nodes::remote_sim::{self, SceneKind, SimNodeConfig};
+use teleop_system_tests::simulated_operator;
 use teleop_system_tests::{free_port, isolated_pair, repo_root};
 
 /// One system of nodes at a time (2-core machines).
@@ -143,6 +144,12 @@ async fn the_pr2_follows_the_imu_suit_absolutely_and_stops_when_the_stream_ends(
         },
         ..Default::default()
     };
+    let tracker_operator = SimulatedOperatorConfig {
+        clutch_delay_s: 1.5,
+        clutch_on_s: 100.0,
+        clutch_cycle_s: 200.0,
+        ..Default::default()
+    };
     let tracker = WristTrackerConfig {
         source: wrist_tracker::TrackerSource::Bvh(BvhStreamConfig {
             address,
@@ -155,23 +162,21 @@ async fn the_pr2_follows_the_imu_suit_absolutely_and_stops_when_the_stream_ends(
             reconnect_s: 0.2,
             arm: Some(ImuArmConfig::default()),
         }),
-        panel: wrist_tracker::PanelSource::Simulated,
-        operator: SimulatedOperatorConfig {
-            clutch_delay_s: 1.5,
-            clutch_on_s: 100.0,
-            clutch_cycle_s: 200.0,
-            ..Default::default()
-        },
+        panel: wrist_tracker::PanelSource::InProcess,
         bus: spoke.clone(),
         ..Default::default()
     };
-    let sim_task = tokio::spawn(sim_node::run(sim, Some(Duration::from_secs(13))));
+    let sim_task = tokio::spawn(remote_sim::run(sim, Some(Duration::from_secs(13))));
     tokio::time::sleep(Duration::from_millis(300)).await;
     let probe = Bus::open("probe", &spoke).await.unwrap();
     let states = probe.subscriber(&topics::HW_PR2_ARM_STATE).await.unwrap();
     let poses = probe.subscriber(&topics::WRIST_POSE).await.unwrap();
     let arm_task = tokio::spawn(arm_node::run(arm, Some(Duration::from_secs(12))));
-    let tracker_task = tokio::spawn(wrist_tracker::run(tracker, Some(Duration::from_secs(12))));
+    let tracker_task = tokio::spawn(wrist_tracker::run_with_devices(
+        tracker,
+        simulated_operator(&tracker_operator, false),
+        Some(Duration::from_secs(12)),
+    ));
     let (started_tx, started_rx) = std::sync::mpsc::channel();
     let server = std::thread::spawn(move || serve(listener, started_tx));
 
@@ -307,25 +312,29 @@ async fn absolute_mode_refuses_poses_in_another_frame() {
         },
         ..Default::default()
     };
+    let tracker_operator = SimulatedOperatorConfig {
+        clutch_delay_s: 0.5,
+        ..Default::default()
+    };
     let tracker = WristTrackerConfig {
-        source: wrist_tracker::TrackerSource::Simulated,
-        panel: wrist_tracker::PanelSource::Simulated,
+        source: wrist_tracker::TrackerSource::InProcess,
+        panel: wrist_tracker::PanelSource::InProcess,
         registration: wrist_tracker::RegistrationConfig {
             base_from_tracker: Some(teleop_control::TransformConfig::default()),
-            ..Default::default()
-        },
-        operator: SimulatedOperatorConfig {
-            clutch_delay_s: 0.5,
             ..Default::default()
         },
         bus: spoke.clone(),
         ..Default::default()
     };
     assert_eq!(tracker.frame_id_in_effect(), "ur5_base_link");
-    let sim_task = tokio::spawn(sim_node::run(sim, Some(Duration::from_secs(5))));
+    let sim_task = tokio::spawn(remote_sim::run(sim, Some(Duration::from_secs(5))));
     tokio::time::sleep(Duration::from_millis(300)).await;
     let arm_task = tokio::spawn(arm_node::run(arm, Some(Duration::from_secs(4))));
-    let tracker_task = tokio::spawn(wrist_tracker::run(tracker, Some(Duration::from_secs(4))));
+    let tracker_task = tokio::spawn(wrist_tracker::run_with_devices(
+        tracker,
+        simulated_operator(&tracker_operator, true),
+        Some(Duration::from_secs(4)),
+    ));
     let report = arm_task.await.unwrap().unwrap();
     tracker_task.await.unwrap().unwrap();
     sim_task.await.unwrap().unwrap();

@@ -15,8 +15,8 @@ use teleop_remote_site::arm_controller::{
     ArmController, ArmControllerConfig, ArmInputs, OperatorSample, RegularizationReference,
     WristSample,
 };
-use teleop_remote_site::sim_node::SimSafetyConfig;
 use teleop_sim::{WORKING_POSTURE_RAD, World, WorldConfig};
+use teleop_sim_nodes::remote_sim::SimSafetyConfig;
 
 /// Square path with sharp corners in the tracker frame, side `side_m`, at
 /// `speed_m_s`, with a slow wrist rotation.

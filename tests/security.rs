@@ -27,7 +27,7 @@ use teleop_node::access::{AccessConfig, SiteName};
 use teleop_node::certs::{self, Identity};
 use teleop_node::router::RouterConfig;
 use teleop_remote_site::arm_node::{self, ArmNodeConfig};
-use teleop_remote_site::sim_node::{self, SimNodeConfig};
+use teleop_sim_nodes::remote_sim::{self, SimNodeConfig};
 use teleop_system_tests::free_port;
 
 const DOMAIN: u32 = 41;
@@ -235,7 +235,7 @@ async fn only_the_operator_site_commands_the_robot_and_bad_commands_are_refused_
         bus: client(remote_port, &dir, "remote_sim"),
         ..Default::default()
     };
-    let sim_task = tokio::spawn(sim_node::run(sim, Some(Duration::from_secs(16))));
+    let sim_task = tokio::spawn(remote_sim::run(sim, Some(Duration::from_secs(16))));
     tokio::time::sleep(Duration::from_millis(300)).await;
     let arm = ArmNodeConfig {
         // The arm alone: no hand whose commanders it would wait for.

@@ -1,9 +1,6 @@
 //! Operator-site nodes (the hand-inference node lives in `teleop-hand-inference`, so
 //! ONNX Runtime stays out of this crate's build):
 //!
-//! * [`local_sim`]: the operator-site simulator process, standing in for the devices'
-//!   drivers (motion capture, pedals, the UR5 behind its safety layer, the depth
-//!   camera) over the hardware topics, with the simulation's ground truth;
 //! * [`wrist_tracker`]: the marker pose registered into the operator's hand frame in
 //!   the UR5 base, jump-filtered, and the pedals, through the operator-site hardware
 //!   traits (`teleop_hardware::{WristTracker, OperatorPanel}`);
@@ -15,13 +12,13 @@
 //!   scale) on the keys of the wrist tracker's terminal.
 //!
 //! Real devices (PhaseSpace, an IMU suit, a pedal box, a UR5 driver, an SR300 driver)
-//! slot in behind the same traits and topics.
+//! slot in behind the same traits and topics; the simulator that stands in for them
+//! (`local_sim`, crate `teleop-sim-nodes`) is not linked here.
 
 pub mod camera_arm;
 pub mod camera_arm_node;
 pub mod display_web;
 pub mod keyboard_panel;
-pub mod local_sim;
 pub mod operator_display;
 pub mod tracking;
 pub mod wrist_tracker;

@@ -51,11 +51,10 @@ use teleop_control::{ConfigError, JumpFilter, JumpFilterConfig, Rejection, Rejec
 use teleop_control::{RejectionCounts, TransformConfig};
 use teleop_hardware::{HardwareError, OperatorPanel, WristTracker};
 use teleop_hardware_bus::{BusPanel, BusWristTracker};
+use teleop_interfaces::calibration;
 use teleop_interfaces::topics;
 use teleop_msgs::{Header, Lifecycle, OperatorInput, PoseStamped, Time};
 use teleop_node::{FinalReport, Node, NodeConfig, Periodic, SchedulingConfig};
-use teleop_sim::operator::{SimulatedDevices, SimulatedOperator, SimulatedOperatorConfig};
-use teleop_sim::operator_site;
 
 use crate::keyboard_panel::{KeyboardPanelConfig, KeyboardReader};
 use crate::tracking::bvh::{BvhStreamConfig, BvhStreamTracker};
@@ -101,9 +100,6 @@ pub struct WristTrackerConfig {
     pub jump: JumpFilterConfig,
     /// Re-acquisition after a rejected jump.
     pub reacquire: ReacquireConfig,
-    /// The simulated operator: the pedals when `panel` is `simulated`, the wrist
-    /// poses when `source` is `simulated`.
-    pub operator: SimulatedOperatorConfig,
     /// The process's scheduling (normal, or real-time FIFO at a priority).
     pub scheduling: SchedulingConfig,
     /// The bus.
@@ -124,7 +120,6 @@ impl Default for WristTrackerConfig {
             registration: RegistrationConfig::default(),
             jump: JumpFilterConfig::default(),
             reacquire: ReacquireConfig::default(),
-            operator: SimulatedOperatorConfig::default(),
             scheduling: SchedulingConfig::default(),
             bus: BusConfig::default(),
         }
@@ -193,21 +188,20 @@ impl NodeConfig for WristTrackerConfig {
         check_range("dropout_after_s", self.dropout_after_s, 0.0, 10.0)?;
         match &self.source {
             TrackerSource::Mocap(m) => m.validate()?,
-            TrackerSource::Simulated => {}
+            TrackerSource::InProcess => {}
             TrackerSource::Replay(r) => r.validate()?,
             TrackerSource::Bvh(b) => b.validate()?,
         }
         match &self.panel {
             PanelSource::Bus(p) => check_range("panel.stale_after_s", p.stale_after_s, 0.0, 10.0)?,
-            PanelSource::Simulated => {}
+            PanelSource::InProcess => {}
             PanelSource::Keyboard(k) => k.validate().map_err(|e| format!("panel.{e}"))?,
         }
         self.registration.validate()?;
         self.jump.validate().map_err(|e| format!("jump: {e}"))?;
         self.reacquire
             .validate()
-            .map_err(|e| format!("reacquire: {e}"))?;
-        self.operator.validate()
+            .map_err(|e| format!("reacquire: {e}"))
     }
 }
 
@@ -241,8 +235,11 @@ pub enum TrackerSource {
     /// over the bus: [`topics::HW_MOCAP_MARKER`], the marker on the back of the hand in
     /// the tracker's own frame, stamped with the capture time. The default.
     Mocap(MocapConfig),
-    /// The in-process simulated operator's motion capture.
-    Simulated,
+    /// A tracker handed to the node by the program that embeds it
+    /// ([`run_with_devices`], [`InProcessDevices`]): a simulated operator in a test, a
+    /// driver linked in. Not for config files (it has no name there).
+    #[serde(skip)]
+    InProcess,
     /// A recorded trajectory (CSV, [`crate::tracking::replay`]).
     Replay(ReplayConfig),
     /// The Perception Neuron suit through Axis Neuron's BVH broadcast
@@ -262,18 +259,12 @@ impl TrackerSource {
     /// # Errors
     /// A missing or malformed replay or skeleton file, an unknown joint name, a bus
     /// declaration.
-    pub async fn open(
-        &self,
-        operator: &SimulatedOperatorConfig,
-        bus: &Bus,
-    ) -> anyhow::Result<PoseDevice> {
+    pub async fn open(&self, bus: &Bus) -> anyhow::Result<PoseDevice> {
         Ok(match self {
             Self::Mocap(m) => {
                 PoseDevice::Mocap(BusWristTracker::mocap(bus, m.stale_after_s).await?)
             }
-            Self::Simulated => PoseDevice::Other(Box::new(SimulatedDevices::new(
-                SimulatedOperator::new(operator.clone()),
-            ))),
+            Self::InProcess => anyhow::bail!("{IN_PROCESS_ONLY}"),
             Self::Replay(r) => PoseDevice::Other(Box::new(ReplayTracker::open(r)?)),
             Self::Bvh(b) => PoseDevice::Other(Box::new(BvhStreamTracker::start(b)?)),
         })
@@ -283,7 +274,7 @@ impl TrackerSource {
     pub fn describe(&self) -> String {
         match self {
             Self::Mocap(_) => format!("motion capture on {}", topics::HW_MOCAP_MARKER.spec.name),
-            Self::Simulated => "simulated operator".into(),
+            Self::InProcess => "an in-process tracker".into(),
             Self::Replay(r) => format!("replay of {}", r.path.display()),
             Self::Bvh(b) => format!("BVH stream from {}", b.address),
         }
@@ -312,9 +303,10 @@ pub enum PanelSource {
     /// The pedal box driver (or the operator-site simulator) over the bus:
     /// [`topics::HW_PEDALS`]. The default.
     Bus(BusPanelConfig),
-    /// The in-process simulated operator (`[operator]`): for the in-process pose
-    /// sources' standalone use.
-    Simulated,
+    /// Pedals handed to the node by the program that embeds it ([`run_with_devices`]).
+    /// Not for config files.
+    #[serde(skip)]
+    InProcess,
     /// The keys of the node's terminal (stdin): a person at the keyboard
     /// ([`crate::keyboard_panel`]). For running the wrist tracker by hand.
     Keyboard(KeyboardPanelConfig),
@@ -332,16 +324,10 @@ impl PanelSource {
     /// # Errors
     /// A bus declaration; for `keyboard`, an invalid config or a terminal whose mode
     /// cannot be set.
-    pub async fn open(
-        &self,
-        operator: &SimulatedOperatorConfig,
-        bus: &Bus,
-    ) -> anyhow::Result<Box<dyn OperatorPanel>> {
+    pub async fn open(&self, bus: &Bus) -> anyhow::Result<Box<dyn OperatorPanel>> {
         Ok(match self {
             Self::Bus(p) => Box::new(BusPanel::pedals(bus, p.stale_after_s).await?),
-            Self::Simulated => Box::new(SimulatedDevices::new(SimulatedOperator::new(
-                operator.clone(),
-            ))),
+            Self::InProcess => anyhow::bail!("{IN_PROCESS_ONLY}"),
             Self::Keyboard(k) => Box::new(KeyboardReader::stdin(k, bus.clock().clone())?),
         })
     }
@@ -362,17 +348,17 @@ pub struct RegistrationConfig {
 
 impl RegistrationConfig {
     /// `(base_from_tracker, hand_from_marker)` for `source`: the configured transforms,
-    /// else the source's defaults: for `mocap` the operator-site simulator's
-    /// installation ([`operator_site::default_base_from_mocap`],
-    /// [`operator_site::default_hand_from_marker`]), for `simulated`, `replay` and
-    /// `bvh` the identity (their poses are published as they come).
+    /// else the source's defaults: for `mocap` the operator site's default installation
+    /// ([`calibration::default_base_from_mocap`],
+    /// [`calibration::default_hand_from_marker`]), for an in-process source, `replay`
+    /// and `bvh` the identity (their poses are published as they come).
     pub fn resolve(&self, source: &TrackerSource) -> (TransformConfig, TransformConfig) {
         let (base, hand) = match source {
             TrackerSource::Mocap(_) => (
-                operator_site::default_base_from_mocap(),
-                operator_site::default_hand_from_marker(),
+                calibration::default_base_from_mocap(),
+                calibration::default_hand_from_marker(),
             ),
-            TrackerSource::Simulated | TrackerSource::Replay(_) | TrackerSource::Bvh(_) => {
+            TrackerSource::InProcess | TrackerSource::Replay(_) | TrackerSource::Bvh(_) => {
                 (TransformConfig::default(), TransformConfig::default())
             }
         };
@@ -790,8 +776,28 @@ impl WristTrackerNode {
     /// # Errors
     /// The source cannot be opened; bus declarations; an invalid filter config.
     pub async fn new(cfg: &WristTrackerConfig, bus: &Bus) -> anyhow::Result<Self> {
-        let device = cfg.source.open(&cfg.operator, bus).await?;
-        let panel = cfg.panel.open(&cfg.operator, bus).await?;
+        Self::with_in_process(cfg, bus, InProcessDevices::default()).await
+    }
+
+    /// The node with the devices handed in, the configured source or panel for those
+    /// not handed in (`None`).
+    ///
+    /// # Errors
+    /// A configured source cannot be opened (an [`TrackerSource::InProcess`] one not
+    /// handed in); bus declarations; an invalid filter config.
+    pub async fn with_in_process(
+        cfg: &WristTrackerConfig,
+        bus: &Bus,
+        devices: InProcessDevices,
+    ) -> anyhow::Result<Self> {
+        let device = match devices.tracker {
+            Some(t) => PoseDevice::Other(t),
+            None => cfg.source.open(bus).await?,
+        };
+        let panel = match devices.panel {
+            Some(p) => p,
+            None => cfg.panel.open(bus).await?,
+        };
         Self::with_pose_device(cfg, bus, device, panel).await
     }
 
@@ -1039,6 +1045,54 @@ pub async fn run(
     teleop_node::run(bus, node, teleop_node::stop_signal(duration)).await
 }
 
+/// What a config file cannot open: an in-process source or panel.
+const IN_PROCESS_ONLY: &str = "an in-process source or panel is handed to the node by the program that embeds it (wrist_tracker::run_with_devices); a config file names mocap, replay or bvh ([source]) and bus or keyboard ([panel])";
+
+/// Devices handed to the node by the program that embeds it (a simulated operator in
+/// a test, a driver linked in); `None` takes the configured one.
+#[derive(Default)]
+pub struct InProcessDevices {
+    /// The wrist pose source, read once per tick (set `[source]` to
+    /// [`TrackerSource::InProcess`] for its registration and frame).
+    pub tracker: Option<Box<dyn WristTracker>>,
+    /// The pedals.
+    pub panel: Option<Box<dyn OperatorPanel>>,
+}
+
+impl std::fmt::Debug for InProcessDevices {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("InProcessDevices")
+            .field("tracker", &self.tracker.is_some())
+            .field("panel", &self.panel.is_some())
+            .finish()
+    }
+}
+
+/// Runs the node like [`run`], with the devices handed in by the embedding program in
+/// place of the configured ones.
+///
+/// # Errors
+/// Bus errors (session, declarations), a configured source that cannot be opened.
+pub async fn run_with_devices(
+    cfg: WristTrackerConfig,
+    devices: InProcessDevices,
+    duration: Option<Duration>,
+) -> anyhow::Result<FinalReport> {
+    let bus = Bus::open(&cfg.node_name, &cfg.bus).await?;
+    let source = match devices.tracker {
+        Some(_) => "an in-process tracker".to_owned(),
+        None => cfg.source.describe(),
+    };
+    let node = WristTrackerNode::with_in_process(&cfg, &bus, devices).await?;
+    tracing::info!(
+        zid = bus.zid(),
+        source,
+        frame_id = node.frame_id(),
+        "wrist tracker running"
+    );
+    teleop_node::run(bus, node, teleop_node::stop_signal(duration)).await
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1064,8 +1118,8 @@ mod tests {
     fn registration_gives_the_known_hand_pose_exactly() {
         let cfg = WristTrackerConfig::default();
         let reg = cfg.registration_in_effect();
-        let base_from_tracker = operator_site::default_base_from_mocap().isometry();
-        let hand_from_marker = operator_site::default_hand_from_marker().isometry();
+        let base_from_tracker = calibration::default_base_from_mocap().isometry();
+        let hand_from_marker = calibration::default_hand_from_marker().isometry();
         // A known hand pose in the base, its marker as the tracker sees it (computed
         // independently of `Registration`), back through the registration.
         let hand = pose(0.55, -0.12, 0.31, 0.4, -0.7, 2.1);
@@ -1100,10 +1154,10 @@ mod tests {
         let mocap = WristTrackerConfig::default();
         assert_eq!(mocap.frame_id_in_effect(), BASE_FRAME);
         let (b, h) = mocap.registration.resolve(&mocap.source);
-        assert_eq!(b, operator_site::default_base_from_mocap());
-        assert_eq!(h, operator_site::default_hand_from_marker());
+        assert_eq!(b, calibration::default_base_from_mocap());
+        assert_eq!(h, calibration::default_hand_from_marker());
         let sim = WristTrackerConfig {
-            source: TrackerSource::Simulated,
+            source: TrackerSource::InProcess,
             ..Default::default()
         };
         assert_eq!(sim.frame_id_in_effect(), TRACKER_FRAME);
@@ -1116,7 +1170,7 @@ mod tests {
             rpy_deg: [0.0; 3],
         };
         let registered_sim = WristTrackerConfig {
-            source: TrackerSource::Simulated,
+            source: TrackerSource::InProcess,
             registration: RegistrationConfig {
                 base_from_tracker: Some(moved),
                 hand_from_marker: None,
@@ -1130,7 +1184,7 @@ mod tests {
             toml::from_str("[registration.hand_from_marker]\ntranslation_m = [0.0, 0.0, 0.1]\n")
                 .expect("parses");
         let (b, h) = toml.registration.resolve(&toml.source);
-        assert_eq!(b, operator_site::default_base_from_mocap());
+        assert_eq!(b, calibration::default_base_from_mocap());
         assert_eq!(h.translation_m, [0.0, 0.0, 0.1]);
     }
 
@@ -1300,8 +1354,24 @@ mod tests {
             TrackerSource::Mocap(MocapConfig { stale_after_s: 0.5 })
         );
         let panel: WristTrackerConfig =
-            toml::from_str("[panel]\nkind = \"simulated\"\n").expect("panel");
-        assert_eq!(panel.panel, PanelSource::Simulated);
+            toml::from_str("[panel]\nkind = \"bus\"\nstale_after_s = 0.3\n").expect("panel");
+        assert_eq!(
+            panel.panel,
+            PanelSource::Bus(BusPanelConfig { stale_after_s: 0.3 })
+        );
+        // In-process devices have no name in a config file; the simulated operator
+        // that once ran inside the node is the operator-site simulator's now.
+        for text in [
+            "[panel]\nkind = \"simulated\"\n",
+            "[source]\nkind = \"simulated\"\n",
+            "[source]\nkind = \"in_process\"\n",
+            "[operator]\nclutch_delay_s = 1.0\n",
+        ] {
+            assert!(
+                toml::from_str::<WristTrackerConfig>(text).is_err(),
+                "{text} must be refused"
+            );
+        }
         let cfg: WristTrackerConfig =
             toml::from_str("[source]\nkind = \"replay\"\npath = \"poses.csv\"\nend = \"loop\"\n")
                 .expect("replay source");
@@ -1434,9 +1504,23 @@ mod tests {
             end: crate::tracking::replay::ReplayEnd::Stop,
             max_gap_s: 0.1,
         })
-        .open(&SimulatedOperatorConfig::default(), &bus)
+        .open(&bus)
         .await
         .expect_err("missing file");
         assert!(missing.to_string().contains("/nonexistent/poses.csv"));
+        let in_process = TrackerSource::InProcess
+            .open(&bus)
+            .await
+            .expect_err("no device handed in");
+        assert!(
+            in_process.to_string().contains("run_with_devices"),
+            "{in_process}"
+        );
+        let panel = PanelSource::InProcess
+            .open(&bus)
+            .await
+            .err()
+            .expect("no panel handed in");
+        assert!(panel.to_string().contains("run_with_devices"), "{panel}");
     }
 }

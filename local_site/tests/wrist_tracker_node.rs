@@ -11,11 +11,11 @@ use std::time::Duration;
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use teleop_bus::{Bus, BusConfig};
+use teleop_interfaces::calibration;
 use teleop_interfaces::topics;
 use teleop_local_site::wrist_tracker::{BASE_FRAME, WristTrackerConfig, WristTrackerNode};
 use teleop_msgs::{Header, Lifecycle, OperatorInput, Pose, PoseStamped, Time};
 use teleop_node::Node;
-use teleop_sim::operator_site;
 
 fn configs(domain_id: u32) -> (BusConfig, BusConfig) {
     teleop_bus::testing::loopback_pair(domain_id)
@@ -33,8 +33,8 @@ fn true_hand(k: i64) -> Isometry3<f64> {
 /// What the motion capture sees for a hand pose: the marker in its own frame, through
 /// the simulator's installation (computed here, independently of the node's code).
 fn marker_for(hand: &Isometry3<f64>) -> Isometry3<f64> {
-    let base_from_mocap = operator_site::default_base_from_mocap().isometry();
-    let hand_from_marker = operator_site::default_hand_from_marker().isometry();
+    let base_from_mocap = calibration::default_base_from_mocap().isometry();
+    let hand_from_marker = calibration::default_hand_from_marker().isometry();
     base_from_mocap.inverse() * hand * hand_from_marker
 }
 

@@ -1,5 +1,5 @@
 //! For the build scripts of the crates with binaries that link MuJoCo (included by
-//! path: `remote_site`, `local_site`, `shared/tools`, `tests`): writes MuJoCo's library
+//! path: `shared/sim_nodes`, `deploy/teleop`, `tests`): writes MuJoCo's library
 //! directory (the physics crate's build script passes it as `DEP_TELEOP_MUJOCO_LIB_DIR`)
 //! and `$ORIGIN/../lib` (an installation that puts the library beside `bin/`, the
 //! container images) into the run path of every binary, test, example and bench of the

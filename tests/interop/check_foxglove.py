@@ -1,7 +1,7 @@
 """Watches a running `teleop foxglove` as Foxglove would and decodes what it serves with
 Foxglove's own ROS 2 decoder (`mcap-ros2-support`), from the `ros2msg` schema each
 channel advertises: a check by hand against a live system, beside the Rust protocol test
-(shared/tools/tests/foxglove.rs), which decodes with the project's own decoder.
+(deploy/teleop/tests/foxglove.rs), which decodes with the project's own decoder.
 
     teleop launch &                      # or any running system
     teleop foxglove --port 8765 &

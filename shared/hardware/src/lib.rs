@@ -16,14 +16,15 @@
 //! the process that owns it and filter every command (limits, end-effector speed,
 //! command timeout), so no caller reaches the hardware unfiltered.
 
+mod impedance;
 pub mod safety;
 pub mod velocity_driver;
 pub mod wire;
 
 use nalgebra::{Isometry3, SVector};
-pub use teleop_control::hand::JointImpedance;
 use teleop_msgs::Image;
 
+pub use impedance::JointImpedance;
 pub use safety::{ArmSafety, ArmSafetyConfig, HandSafety, HandSafetyConfig, SafeArm, SafeHand};
 
 /// Number of actuated finger joints of the Shadow hand with BioTacs.
@@ -98,20 +99,8 @@ pub enum HandCommand {
 /// damping) never waits for the network: a controller across a bus sends gains and set
 /// points, as with the joint impedance interfaces of torque-controlled arms. A real
 /// Shadow hand driver evaluates it in its 1 kHz control loop, where the thesis's
-/// controller ran. The same type the control laws produce.
+/// controller ran. The same type the control laws produce (`teleop-control` builds it).
 pub type HandImpedance = JointImpedance<FINGER_DOF>;
-
-/// A control law's output as the hardware command that carries it.
-impl From<teleop_control::hand::HandOutput<FINGER_DOF>> for HandCommand {
-    fn from(out: teleop_control::hand::HandOutput<FINGER_DOF>) -> Self {
-        use teleop_control::hand::HandOutput;
-        match out {
-            HandOutput::Effort(t) => HandCommand::Effort(t),
-            HandOutput::Position(q) => HandCommand::Position(q),
-            HandOutput::Impedance(z) => HandCommand::Impedance(z),
-        }
-    }
-}
 
 impl HandCommand {
     /// True when every value (every field of an impedance) is finite.

@@ -6,16 +6,20 @@
 //!   class, deadline); `docs/topics.md` is generated from it;
 //! * [`hardware`]: the hardware interfaces offered on the bus (which joints, which
 //!   state and command topics, which node may command them);
-//! * [`nodes`]: every node binary, its site, its machine and its config file.
+//! * [`nodes`]: every node binary, its site, its machine and its config file;
+//! * [`calibration`]: the operator site's default calibrations (motion capture to
+//!   UR5 base, marker to hand) and the config form of a rigid transform.
 //!
 //! No I/O here: the transport (`teleop-bus`) implements the QoS classes, the nodes use
 //! the names.
 
+pub mod calibration;
 pub mod hardware;
 pub mod joints;
 pub mod nodes;
 pub mod topics;
 
+pub use calibration::TransformConfig;
 pub use hardware::{ArmInterface, HandInterface};
 pub use nodes::{NodeSpec, Site};
 pub use topics::{Direction, Publishers, QosClass, Topic, TopicSpec};

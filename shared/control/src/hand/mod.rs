@@ -50,13 +50,15 @@ pub use input::JointInput;
 pub use position::PdServo;
 
 use nalgebra::SVector;
+pub use teleop_hardware::JointImpedance;
+use teleop_hardware::{FINGER_DOF, HandCommand};
 
 use crate::error::{ConfigError, Rejection, RejectionCounts};
 use input::check_dt;
 
 /// Number of actuated finger joints of the Shadow hand with BioTacs (the five J1 are
 /// fixed; the wrist belongs to the arm chain).
-pub const SHADOW_FINGER_JOINT_COUNT: usize = 17;
+pub const SHADOW_FINGER_JOINT_COUNT: usize = FINGER_DOF;
 
 /// The hand controller for the Shadow hand's 17 finger joints.
 pub type ShadowHandController = HandController<SHADOW_FINGER_JOINT_COUNT>;
@@ -74,61 +76,6 @@ pub enum HandOutput<const N: usize> {
     /// The law as a joint impedance for the hardware's own loop
     /// ([`HardwareInterface::Impedance`]).
     Impedance(JointImpedance<N>),
-}
-
-/// A joint impedance for the hardware's own loop: there, every period, with its newest
-/// measurement, `τ = feedforward + stiffness (position - q) + damping (velocity - q̇)`,
-/// clamped to `±max_effort`. Gravity is in the feed-forward.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct JointImpedance<const N: usize> {
-    /// Set point (the target), rad.
-    pub position_rad: SVector<f64, N>,
-    /// Set point velocity (the target's), rad/s.
-    pub velocity_rad_s: SVector<f64, N>,
-    /// N m/rad.
-    pub stiffness_nm_rad: SVector<f64, N>,
-    /// N m s/rad.
-    pub damping_nm_s_rad: SVector<f64, N>,
-    /// N m.
-    pub feedforward_nm: SVector<f64, N>,
-    /// N m.
-    pub max_effort_nm: SVector<f64, N>,
-}
-
-impl<const N: usize> JointImpedance<N> {
-    /// The clamped effort at `q`, `q̇`, N m (what the hardware applies); a joint whose
-    /// law or limit is not finite gets 0.
-    pub fn effort_at(
-        &self,
-        position_rad: &SVector<f64, N>,
-        velocity_rad_s: &SVector<f64, N>,
-    ) -> SVector<f64, N> {
-        SVector::from_fn(|i, _| {
-            let tau = self.feedforward_nm[i]
-                + self.stiffness_nm_rad[i] * (self.position_rad[i] - position_rad[i])
-                + self.damping_nm_s_rad[i] * (self.velocity_rad_s[i] - velocity_rad_s[i]);
-            let max = self.max_effort_nm[i].abs();
-            if tau.is_finite() && max.is_finite() {
-                tau.clamp(-max, max)
-            } else {
-                0.0
-            }
-        })
-    }
-
-    /// True when every value of every field is finite.
-    pub fn is_finite(&self) -> bool {
-        [
-            &self.position_rad,
-            &self.velocity_rad_s,
-            &self.stiffness_nm_rad,
-            &self.damping_nm_s_rad,
-            &self.feedforward_nm,
-            &self.max_effort_nm,
-        ]
-        .iter()
-        .all(|v| v.iter().all(|x| x.is_finite()))
-    }
 }
 
 impl<const N: usize> HandOutput<N> {
@@ -153,6 +100,17 @@ impl<const N: usize> HandOutput<N> {
         match self {
             HandOutput::Impedance(z) => Some(z),
             _ => None,
+        }
+    }
+}
+
+/// A control law's output as the hardware command that carries it.
+impl From<HandOutput<FINGER_DOF>> for HandCommand {
+    fn from(out: HandOutput<FINGER_DOF>) -> Self {
+        match out {
+            HandOutput::Effort(t) => HandCommand::Effort(t),
+            HandOutput::Position(q) => HandCommand::Position(q),
+            HandOutput::Impedance(z) => HandCommand::Impedance(z),
         }
     }
 }

@@ -61,25 +61,7 @@ pub use watching::{OperatorModel, WatchingConfig, WatchingOperator};
 /// UR5 joint count.
 pub const UR5_DOF: usize = 6;
 
-/// Where the motion-capture system's own frame sits in the UR5 base frame, as the
-/// simulated PhaseSpace is installed (the registration `rT_c` of eq. 7.1 folded into
-/// one transform). Not the identity, so a missing registration shows.
-pub fn default_base_from_mocap() -> TransformConfig {
-    TransformConfig {
-        translation_m: [1.2, -0.4, -0.8],
-        rpy_deg: [0.0, 0.0, 90.0],
-    }
-}
-
-/// The LED marker's pose in the operator's hand frame (Fig. 3.6: origin at the wrist,
-/// z along the fingers, y the palm normal): on the back of the hand (-y), 5 cm toward
-/// the knuckles, rotated as the rigid body was glued on.
-pub fn default_hand_from_marker() -> TransformConfig {
-    TransformConfig {
-        translation_m: [0.0, -0.03, 0.05],
-        rpy_deg: [90.0, 0.0, 0.0],
-    }
-}
+pub use teleop_interfaces::calibration::{default_base_from_mocap, default_hand_from_marker};
 
 /// The UR5's start posture, rad: elbow up, the camera level, looking along the base's
 /// -x at the operator's resting hand, image up = world up.

@@ -49,7 +49,7 @@ fn run(rate_hz: f64, steps: usize) {
     let mut t_safety = Vec::with_capacity(steps);
     let mut safety = ArmSafety::new(
         robots::pr2_arm_chain().unwrap(),
-        teleop_remote_site::sim_node::SimSafetyConfig::default().arm,
+        teleop_sim_nodes::remote_sim::SimSafetyConfig::default().arm,
     )
     .unwrap();
     let mut q_ik = q;

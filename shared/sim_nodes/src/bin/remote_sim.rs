@@ -1,7 +1,7 @@
 //! Robot-site simulator: the PR2 arm, the Shadow hand and the task objects, offered to the controllers over the hardware topics.
 use clap::Parser;
 use teleop_node::NodeArgs;
-use teleop_remote_site::sim_node;
+use teleop_sim_nodes::remote_sim;
 
 /// Simulates the robot site's hardware in real time.
 #[derive(Debug, Parser)]
@@ -13,5 +13,5 @@ struct Cli {
 
 fn main() -> anyhow::Result<()> {
     teleop_node::init_tracing();
-    Cli::parse().node.main(sim_node::run)
+    Cli::parse().node.main(remote_sim::run)
 }

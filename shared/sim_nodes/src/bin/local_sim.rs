@@ -1,7 +1,7 @@
 //! Operator-site simulator: the simulated operator, motion capture, pedals, the UR5 and its depth camera, offered to the operator-site nodes over the hardware topics.
 use clap::Parser;
-use teleop_local_site::local_sim;
 use teleop_node::NodeArgs;
+use teleop_sim_nodes::local_sim;
 
 /// Simulates the operator site's hardware in real time.
 #[derive(Debug, Parser)]

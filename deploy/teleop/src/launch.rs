@@ -20,15 +20,16 @@ use teleop_interfaces::nodes::{NODES, NodeSpec, Site};
 use teleop_interfaces::topics;
 use teleop_local_site::camera_arm_node::CameraArmNodeConfig;
 use teleop_local_site::keyboard_panel::{KeyboardPanelConfig, TerminalMode};
-use teleop_local_site::local_sim::LocalSimConfig;
 use teleop_local_site::operator_display::OperatorDisplayConfig;
 use teleop_local_site::wrist_tracker::{PanelSource, WristTrackerConfig};
 use teleop_msgs::{Lifecycle, NodeStatus};
 use teleop_node::ZenohArgs;
 use teleop_sim::operator_site::{OperatorModel, TaskKind};
+use teleop_sim_nodes::local_sim::LocalSimConfig;
 use tokio::process::{Child, Command};
 
 use crate::report::Recorder;
+use crate::tasks::PICK_JOB;
 
 use crate::record::reports_task_done;
 
@@ -239,10 +240,6 @@ fn forward_keys(
         .context("starting the key forwarding thread")?;
     Ok(mode)
 }
-
-/// The task of the operator who watches the display and does the robot world's pick
-/// job (`[pick.job]` of `remote_sim`), judged by the robot-site simulator.
-pub const PICK_JOB: &str = "pick";
 
 /// Settings a task needs on other nodes, before the command line's own `--set` (which
 /// win): the pick job starts the PR2 at the top grasp's posture with the table under

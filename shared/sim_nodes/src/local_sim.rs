@@ -48,7 +48,7 @@ use teleop_sim::operator_site::{
     SimUr5, UR5_DOF, WatchingOperator,
 };
 
-use crate::wrist_tracker::pose_msg;
+use teleop_hardware::wire::pose_msg;
 
 /// The hardware safety layer of the simulated UR5.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

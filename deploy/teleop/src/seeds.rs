@@ -12,37 +12,7 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use crate::report::{JobOutcome, OperatorOutcome};
-
-/// A task's figures in the thesis: its tables' success rate and average completion
-/// time ("calculated when the robot started to move until it went back to the
-/// starting pose", ch. 6.4, Table 6.1).
-#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
-pub struct ThesisFigure {
-    /// Where the thesis gives it.
-    pub source: &'static str,
-    pub success_pct: f64,
-    pub time_s: f64,
-}
-
-/// The thesis's figures for the task launched as `task`.
-#[must_use]
-pub fn thesis_figures(task: &str) -> &'static [ThesisFigure] {
-    match task {
-        crate::launch::PICK_JOB => &[
-            ThesisFigure {
-                source: "Table 6.1, pick1 (the Pringles can; 5 trials by one demonstrator)",
-                success_pct: 100.0,
-                time_s: 18.5,
-            },
-            ThesisFigure {
-                source: "Table 7.1, pick",
-                success_pct: 90.0,
-                time_s: 52.5,
-            },
-        ],
-        _ => &[],
-    }
-}
+use crate::tasks::{ThesisFigure, thesis_figures};
 
 /// One seeded run.
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -585,7 +555,7 @@ mod tests {
             .map(|i| run(i, true, Some(20.0 + i as f64)))
             .collect();
         runs.push(run(9, false, None));
-        let s = SeedsSummary::new(crate::launch::PICK_JOB, None, 0.0, runs);
+        let s = SeedsSummary::new(crate::tasks::PICK_JOB, None, 0.0, runs);
         assert_eq!(s.succeeded, 9);
         assert_eq!(s.success_pct, 90.0);
         assert_eq!(s.completion_mean_s, Some(24.0));
@@ -612,7 +582,7 @@ mod tests {
         let mut lost = run(3, true, Some(10.0));
         lost.job = None;
         lost.error = Some("node remote_sim exited early".into());
-        let s = SeedsSummary::new(crate::launch::PICK_JOB, None, 0.0, vec![lost]);
+        let s = SeedsSummary::new(crate::tasks::PICK_JOB, None, 0.0, vec![lost]);
         assert_eq!(s.succeeded, 0);
         assert_eq!(s.completion_mean_s, None);
         assert!(
@@ -621,7 +591,7 @@ mod tests {
                 .all(|c| !c.success_met && c.time_met.is_none())
         );
         assert!(s.text().contains("no verdict"), "{}", s.text());
-        let none = SeedsSummary::new(crate::launch::PICK_JOB, None, 0.0, Vec::new());
+        let none = SeedsSummary::new(crate::tasks::PICK_JOB, None, 0.0, Vec::new());
         assert_eq!(none.success_pct, 0.0);
         assert!(none.thesis.iter().all(|c| !c.success_met));
         assert!(thesis_figures("fader").is_empty());
@@ -631,7 +601,7 @@ mod tests {
     fn the_summary_is_written_as_json_and_a_picture() {
         let dir = std::env::temp_dir().join(format!("teleop-seeds-test-{}", std::process::id()));
         let s = SeedsSummary::new(
-            crate::launch::PICK_JOB,
+            crate::tasks::PICK_JOB,
             Some("delay_ms=25".into()),
             50.0,
             vec![run(1, true, Some(23.4)), run(2, false, None)],

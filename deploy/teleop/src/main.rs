@@ -16,6 +16,7 @@ mod router;
 mod seeds;
 mod site_link;
 mod sweep;
+mod tasks;
 
 use clap::{Parser, Subcommand};
 use teleop_node::ZenohArgs;
