@@ -304,7 +304,7 @@ pub async fn monitor(
     duration_s: Option<f64>,
 ) -> anyhow::Result<()> {
     let duration = deadline(duration_s)?.map(|u| u.saturating_duration_since(Instant::now()));
-    monitor_until(cfg, only, teleop_node::stop_signal(duration), &[]).await
+    monitor_until(cfg, only, None, teleop_node::stop_signal(duration), &[]).await
 }
 
 /// How the monitor's table reaches the screen.
@@ -350,11 +350,25 @@ impl TableOutput {
     }
 }
 
+/// Whether `topic` reaches `site`: all but the other site's internal topics.
+fn reaches(topic: &TopicSpec, site: teleop_interfaces::nodes::Site) -> bool {
+    use teleop_interfaces::nodes::Site;
+    use topics::Direction;
+    !matches!(
+        (site, topic.direction),
+        (Site::Local, Direction::RemoteInternal) | (Site::Remote, Direction::LocalInternal)
+    )
+}
+
 /// [`monitor`] until `stop` completes; `banner` lines go above the table redrawn in
-/// place (plain lines leave them out: the caller prints them once).
+/// place (plain lines leave them out: the caller prints them once). With `at_site`,
+/// only the topics that reach that site in a deployment: the other site's internal
+/// ones (the robots' 250 Hz-1 kHz hardware states, the raw camera images) are not
+/// subscribed to, so a monitor behind a WAN does not pull them across it.
 pub async fn monitor_until(
     cfg: &BusConfig,
     only: Option<&str>,
+    at_site: Option<teleop_interfaces::nodes::Site>,
     stop: impl std::future::Future<Output = ()>,
     banner: &[String],
 ) -> anyhow::Result<()> {
@@ -364,7 +378,10 @@ pub async fn monitor_until(
     let mut first = true;
     let specs: Vec<&'static TopicSpec> = match only {
         Some(name) => vec![spec_or_bail(name)?],
-        None => topics::ALL.iter().collect(),
+        None => topics::ALL
+            .iter()
+            .filter(|t| at_site.is_none_or(|site| reaches(t, site)))
+            .collect(),
     };
     tokio::pin!(stop);
     let bus = open(cfg).await?;
@@ -451,5 +468,22 @@ mod dispatch_tests {
                 .unwrap_or_else(|e| panic!("/{}: {e}", spec.name));
             assert_eq!(name, spec.type_name);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use teleop_interfaces::nodes::Site;
+
+    #[test]
+    fn a_site_watches_what_reaches_it_not_the_other_sites_internals() {
+        assert!(!reaches(&topics::HW_PR2_ARM_STATE.spec, Site::Local));
+        assert!(reaches(&topics::PR2_JOINT_STATES.spec, Site::Local));
+        assert!(reaches(&topics::HW_PEDALS.spec, Site::Local));
+        assert!(reaches(&topics::WRIST_POSE.spec, Site::Local));
+        assert!(!reaches(&topics::HW_PEDALS.spec, Site::Remote));
+        assert!(reaches(&topics::HW_PR2_ARM_STATE.spec, Site::Remote));
+        assert!(reaches(&topics::NODE_STATUS.spec, Site::Remote));
     }
 }

@@ -418,12 +418,7 @@ pub async fn launch(args: LaunchArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         });
     }
     watcher.abort();
-    let summary = crate::seeds::SeedsSummary::new(
-        &task,
-        wan.map(|w| crate::site_link::describe(&w)),
-        wan.map_or(0.0, |w| 2.0 * w.delay_ms),
-        runs,
-    );
+    let summary = crate::seeds::SeedsSummary::new(&task, wan.as_ref(), runs);
     println!();
     print!("{}", summary.text());
     if !args.no_report_files {
@@ -610,7 +605,10 @@ async fn launch_once(
             stop.await;
             Ok(())
         } else {
-            crate::inspect::monitor_until(&cfg, None, stop, &banner).await
+            // Behind the emulated WAN the launcher is at the operator's site: it
+            // watches what reaches that site, not the robot site's internal topics.
+            let at_site = link.as_ref().map(|_| Site::Local);
+            crate::inspect::monitor_until(&cfg, None, at_site, stop, &banner).await
         }
     };
     let run_once = sim_config.is_some();

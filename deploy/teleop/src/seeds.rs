@@ -67,6 +67,10 @@ pub struct SeedsSummary {
     pub wan: Option<String>,
     /// The WAN's round trip, ms (0 without one).
     pub round_trip_ms: f64,
+    /// TCP segments the WAN loses, each way, % (0 without one).
+    pub loss_pct: f64,
+    /// The WAN's bandwidth cap, each way, Mbit/s (`None`: uncapped, or no WAN).
+    pub rate_mbit: Option<f64>,
     pub runs: Vec<SeedRun>,
     pub succeeded: usize,
     pub success_pct: f64,
@@ -79,7 +83,7 @@ pub struct SeedsSummary {
 
 impl SeedsSummary {
     #[must_use]
-    pub fn new(task: &str, wan: Option<String>, round_trip_ms: f64, runs: Vec<SeedRun>) -> Self {
+    pub fn new(task: &str, wan: Option<&teleop_wan_link::Impairment>, runs: Vec<SeedRun>) -> Self {
         let mut times: Vec<f64> = runs
             .iter()
             .filter(|r| r.succeeded())
@@ -110,8 +114,10 @@ impl SeedsSummary {
             .collect();
         Self {
             task: task.to_owned(),
-            wan,
-            round_trip_ms,
+            wan: wan.map(crate::site_link::describe),
+            round_trip_ms: wan.map_or(0.0, |w| 2.0 * w.delay_ms),
+            loss_pct: wan.map_or(0.0, |w| 100.0 * w.loss),
+            rate_mbit: wan.and_then(|w| w.rate_mbit),
             runs,
             succeeded,
             success_pct,
@@ -335,7 +341,8 @@ fn thesis_lines(
 }
 
 /// `teleop seeds-plot`: several `--seeds` summaries (one per WAN condition) as a
-/// table and a picture of success rate and completion time against the round trip.
+/// table and a picture of success rate and completion time against the round trip,
+/// the loss or the bandwidth cap (`--against`).
 #[derive(Debug, Clone, clap::Args)]
 pub struct SeedsPlotArgs {
     /// Directories holding a `summary.json` of `teleop launch --seeds` each.
@@ -344,13 +351,73 @@ pub struct SeedsPlotArgs {
     /// The picture to write.
     #[arg(long, default_value = "success-vs-round-trip.png")]
     pub out: PathBuf,
+    /// The x axis: the WAN setting the summaries differ in.
+    #[arg(long, value_enum, default_value_t = Against::RoundTrip)]
+    pub against: Against,
+}
+
+/// The WAN setting a picture of `seeds-plot` is drawn against.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Against {
+    /// The round trip between the sites, ms.
+    RoundTrip,
+    /// The loss of TCP segments, each way, % (none: 0).
+    Loss,
+    /// The bandwidth cap, each way, Mbit/s; a summary without a cap is drawn as the
+    /// uncapped reference.
+    Rate,
+}
+
+impl Against {
+    /// The x axis's description.
+    fn axis(self) -> &'static str {
+        match self {
+            Self::RoundTrip => "round trip between the sites (ms)",
+            Self::Loss => "TCP segments lost, each way (%)",
+            Self::Rate => "bandwidth cap, each way (Mbit/s)",
+        }
+    }
+
+    /// The column's header.
+    fn header(self) -> &'static str {
+        match self {
+            Self::RoundTrip => "round trip (ms)",
+            Self::Loss => "loss each way (%)",
+            Self::Rate => "cap each way (Mbit/s)",
+        }
+    }
+
+    /// What the title says the picture is against.
+    fn title(self) -> &'static str {
+        match self {
+            Self::RoundTrip => "the WAN's round trip",
+            Self::Loss => "the WAN's loss",
+            Self::Rate => "the WAN's bandwidth cap",
+        }
+    }
+
+    /// The condition's place on the axis (`None`: uncapped, for [`Against::Rate`]).
+    fn x(self, c: &Condition) -> Option<f64> {
+        match self {
+            Self::RoundTrip => Some(c.round_trip_ms),
+            Self::Loss => Some(c.loss_pct),
+            Self::Rate => c.rate_mbit,
+        }
+    }
 }
 
 /// What the picture takes from one summary.
 #[derive(Debug, Clone, serde::Deserialize)]
 struct Condition {
     task: String,
+    #[serde(default)]
+    wan: Option<String>,
     round_trip_ms: f64,
+    /// Absent from summaries written before it was: no loss.
+    #[serde(default)]
+    loss_pct: f64,
+    #[serde(default)]
+    rate_mbit: Option<f64>,
     success_pct: f64,
     succeeded: usize,
     runs: Vec<serde_json::Value>,
@@ -358,11 +425,12 @@ struct Condition {
     completion_p90_s: Option<f64>,
 }
 
-/// Reads the summaries, prints a Markdown table sorted by round trip, draws the
-/// picture.
+/// Reads the summaries, prints a Markdown table sorted by the chosen WAN setting
+/// (`--against`), draws the picture.
 ///
 /// # Errors
-/// A missing or unreadable summary, summaries of different tasks, the picture.
+/// A missing or unreadable summary, summaries of different tasks, two summaries at
+/// the same place on the axis, the picture.
 pub fn plot(args: &SeedsPlotArgs) -> anyhow::Result<()> {
     use anyhow::Context;
     let mut conditions = Vec::new();
@@ -376,9 +444,17 @@ pub fn plot(args: &SeedsPlotArgs) -> anyhow::Result<()> {
         })?;
         let c: Condition = serde_json::from_str(&text)
             .with_context(|| format!("{} is not a --seeds summary", path.display()))?;
-        if !c.round_trip_ms.is_finite() || !c.success_pct.is_finite() {
+        if ![
+            c.round_trip_ms,
+            c.loss_pct,
+            c.success_pct,
+            c.rate_mbit.unwrap_or(1.0),
+        ]
+        .iter()
+        .all(|v| v.is_finite())
+        {
             anyhow::bail!(
-                "{}: round trip or success rate not a number",
+                "{}: round trip, loss, cap or success rate not a number",
                 path.display()
             );
         }
@@ -391,16 +467,36 @@ pub fn plot(args: &SeedsPlotArgs) -> anyhow::Result<()> {
             other.task
         );
     }
-    conditions.sort_by(|a, b| a.round_trip_ms.total_cmp(&b.round_trip_ms));
+    let mut placed: Vec<(Option<f64>, Condition)> = conditions
+        .into_iter()
+        .map(|c| (args.against.x(&c), c))
+        .collect();
+    // Uncapped first, then by the setting.
+    placed.sort_by(|a, b| match (a.0, b.0) {
+        (Some(x), Some(y)) => x.total_cmp(&y),
+        (None, Some(_)) => std::cmp::Ordering::Less,
+        (Some(_), None) => std::cmp::Ordering::Greater,
+        (None, None) => std::cmp::Ordering::Equal,
+    });
+    if let Some(w) = placed.windows(2).find(|w| w[0].0 == w[1].0) {
+        anyhow::bail!(
+            "two summaries at the same {} ({:?} and {:?}): one point each",
+            args.against.header(),
+            w[0].1.wan,
+            w[1].1.wan
+        );
+    }
     let fmt = |v: Option<f64>| v.map_or_else(|| "-".to_owned(), |t| format!("{t:.1}"));
     println!(
-        "| round trip (ms) | runs | succeeded | success rate | completion mean (s) | p90 (s) |"
+        "| {} | WAN | runs | succeeded | success rate | completion mean (s) | p90 (s) |",
+        args.against.header()
     );
-    println!("|---|---|---|---|---|---|");
-    for c in &conditions {
+    println!("|---|---|---|---|---|---|---|");
+    for (x, c) in &placed {
         println!(
-            "| {:.0} | {} | {} | {:.0} % | {} | {} |",
-            c.round_trip_ms,
+            "| {} | {} | {} | {} | {:.0} % | {} | {} |",
+            x.map_or_else(|| "none".to_owned(), |v| format!("{v}")),
+            c.wan.as_deref().unwrap_or("none"),
             c.runs.len(),
             c.succeeded,
             c.success_pct,
@@ -408,21 +504,42 @@ pub fn plot(args: &SeedsPlotArgs) -> anyhow::Result<()> {
             fmt(c.completion_p90_s)
         );
     }
-    draw_vs_round_trip(&task, &conditions, &args.out)?;
+    draw_against(&task, args.against, &placed, &args.out)?;
     println!("picture written to {}", args.out.display());
     Ok(())
 }
 
-fn draw_vs_round_trip(task: &str, conditions: &[Condition], path: &Path) -> anyhow::Result<()> {
+/// Success and completion time against one WAN setting; for [`Against::Rate`], the
+/// uncapped summary (if any) drawn as dashed reference lines.
+fn draw_against(
+    task: &str,
+    against: Against,
+    placed: &[(Option<f64>, Condition)],
+    path: &Path,
+) -> anyhow::Result<()> {
     use plotters::prelude::*;
     let e = |e: &dyn std::fmt::Display| anyhow::anyhow!("{e}");
     teleop_node::plot::register_fonts()?;
     let root = BitMapBackend::new(path, (1400, 600)).into_drawing_area();
     root.fill(&WHITE).map_err(|x| e(&x))?;
-    let runs = conditions.iter().map(|c| c.runs.len()).max().unwrap_or(0);
+    let most = placed.iter().map(|(_, c)| c.runs.len()).max().unwrap_or(0);
+    let fewest = placed.iter().map(|(_, c)| c.runs.len()).min().unwrap_or(0);
+    let runs = if fewest == most {
+        format!("{most}")
+    } else {
+        format!("{fewest}-{most}")
+    };
+    let conditions: Vec<(f64, &Condition)> = placed
+        .iter()
+        .filter_map(|(x, c)| Some(((*x)?, c)))
+        .collect();
+    let uncapped = placed.iter().find(|(x, _)| x.is_none()).map(|(_, c)| c);
     let root = root
         .titled(
-            &format!("{task}: success and completion time vs the WAN's round trip ({runs} seeded runs per point)"),
+            &format!(
+                "{task}: success and completion time vs {} ({runs} seeded runs per point)",
+                against.title()
+            ),
             ("sans-serif", 26),
         )
         .map_err(|x| e(&x))?;
@@ -430,11 +547,13 @@ fn draw_vs_round_trip(task: &str, conditions: &[Condition], path: &Path) -> anyh
         let v = root.split_evenly((1, 2));
         [v[0].clone(), v[1].clone()]
     };
-    let x_max = conditions
-        .iter()
-        .map(|c| c.round_trip_ms)
-        .fold(50.0_f64, f64::max)
-        * 1.1;
+    let x_max = conditions.iter().map(|(x, _)| *x).fold(
+        match against {
+            Against::RoundTrip => 50.0_f64,
+            Against::Loss | Against::Rate => 1.0,
+        },
+        f64::max,
+    ) * 1.1;
     let thesis = thesis_figures(task);
     // Success rate.
     let mut chart = ChartBuilder::on(&left)
@@ -446,13 +565,13 @@ fn draw_vs_round_trip(task: &str, conditions: &[Condition], path: &Path) -> anyh
         .map_err(|x| e(&x))?;
     chart
         .configure_mesh()
-        .x_desc("round trip between the sites (ms)")
+        .x_desc(against.axis())
         .y_desc("runs judged a success (%)")
         .draw()
         .map_err(|x| e(&x))?;
     let pts: Vec<(f64, f64)> = conditions
         .iter()
-        .map(|c| (c.round_trip_ms, c.success_pct))
+        .map(|(x, c)| (*x, c.success_pct))
         .collect();
     chart
         .draw_series(LineSeries::new(pts.clone(), GREEN.stroke_width(3)))
@@ -465,6 +584,9 @@ fn draw_vs_round_trip(task: &str, conditions: &[Condition], path: &Path) -> anyh
     thesis_lines(&mut chart, thesis, (0.0, x_max), |f| {
         (f.success_pct, format!("{:.0} %", f.success_pct))
     })?;
+    if let Some(u) = uncapped {
+        reference_line(&mut chart, (0.0, x_max), u.success_pct, "uncapped")?;
+    }
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::LowerLeft)
@@ -476,7 +598,8 @@ fn draw_vs_round_trip(task: &str, conditions: &[Condition], path: &Path) -> anyh
     // Completion time.
     let y_max = conditions
         .iter()
-        .filter_map(|c| c.completion_p90_s)
+        .filter_map(|(_, c)| c.completion_p90_s)
+        .chain(uncapped.and_then(|u| u.completion_p90_s))
         .chain(thesis.iter().map(|f| f.time_s))
         .fold(10.0_f64, f64::max)
         * 1.2;
@@ -489,17 +612,17 @@ fn draw_vs_round_trip(task: &str, conditions: &[Condition], path: &Path) -> anyh
         .map_err(|x| e(&x))?;
     chart
         .configure_mesh()
-        .x_desc("round trip between the sites (ms)")
+        .x_desc(against.axis())
         .y_desc("completion time (s)")
         .draw()
         .map_err(|x| e(&x))?;
     let mean: Vec<(f64, f64)> = conditions
         .iter()
-        .filter_map(|c| Some((c.round_trip_ms, c.completion_mean_s?)))
+        .filter_map(|(x, c)| Some((*x, c.completion_mean_s?)))
         .collect();
     let p90: Vec<(f64, f64)> = conditions
         .iter()
-        .filter_map(|c| Some((c.round_trip_ms, c.completion_p90_s?)))
+        .filter_map(|(x, c)| Some((*x, c.completion_p90_s?)))
         .collect();
     chart
         .draw_series(LineSeries::new(mean.clone(), BLACK.stroke_width(3)))
@@ -517,6 +640,9 @@ fn draw_vs_round_trip(task: &str, conditions: &[Condition], path: &Path) -> anyh
     thesis_lines(&mut chart, thesis, (0.0, x_max), |f| {
         (f.time_s, format!("{:.1} s", f.time_s))
     })?;
+    if let Some(t) = uncapped.and_then(|u| u.completion_mean_s) {
+        reference_line(&mut chart, (0.0, x_max), t, "uncapped, mean")?;
+    }
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::LowerRight)
@@ -526,6 +652,29 @@ fn draw_vs_round_trip(task: &str, conditions: &[Condition], path: &Path) -> anyh
         .draw()
         .map_err(|x| e(&x))?;
     root.present().map_err(|x| e(&x))?;
+    Ok(())
+}
+
+/// A dashed grey horizontal line at `y` across `x`, in the legend as `label` (the
+/// uncapped link's figure beside the capped ones).
+fn reference_line(
+    chart: &mut Chart<'_, '_>,
+    x: (f64, f64),
+    y: f64,
+    label: &str,
+) -> anyhow::Result<()> {
+    use plotters::prelude::*;
+    let grey = RGBColor(110, 110, 110);
+    chart
+        .draw_series(DashedLineSeries::new(
+            [(x.0, y), (x.1, y)],
+            4,
+            4,
+            grey.stroke_width(2),
+        ))
+        .map_err(|e| anyhow::anyhow!("{e}"))?
+        .label(format!("{label}: {y:.1}"))
+        .legend(move |(lx, ly)| PathElement::new([(lx, ly), (lx + 14, ly)], grey.stroke_width(2)));
     Ok(())
 }
 
@@ -555,7 +704,7 @@ mod tests {
             .map(|i| run(i, true, Some(20.0 + i as f64)))
             .collect();
         runs.push(run(9, false, None));
-        let s = SeedsSummary::new(crate::tasks::PICK_JOB, None, 0.0, runs);
+        let s = SeedsSummary::new(crate::tasks::PICK_JOB, None, runs);
         assert_eq!(s.succeeded, 9);
         assert_eq!(s.success_pct, 90.0);
         assert_eq!(s.completion_mean_s, Some(24.0));
@@ -582,7 +731,7 @@ mod tests {
         let mut lost = run(3, true, Some(10.0));
         lost.job = None;
         lost.error = Some("node remote_sim exited early".into());
-        let s = SeedsSummary::new(crate::tasks::PICK_JOB, None, 0.0, vec![lost]);
+        let s = SeedsSummary::new(crate::tasks::PICK_JOB, None, vec![lost]);
         assert_eq!(s.succeeded, 0);
         assert_eq!(s.completion_mean_s, None);
         assert!(
@@ -591,7 +740,7 @@ mod tests {
                 .all(|c| !c.success_met && c.time_met.is_none())
         );
         assert!(s.text().contains("no verdict"), "{}", s.text());
-        let none = SeedsSummary::new(crate::tasks::PICK_JOB, None, 0.0, Vec::new());
+        let none = SeedsSummary::new(crate::tasks::PICK_JOB, None, Vec::new());
         assert_eq!(none.success_pct, 0.0);
         assert!(none.thesis.iter().all(|c| !c.success_met));
         assert!(thesis_figures("fader").is_empty());
@@ -600,10 +749,10 @@ mod tests {
     #[test]
     fn the_summary_is_written_as_json_and_a_picture() {
         let dir = std::env::temp_dir().join(format!("teleop-seeds-test-{}", std::process::id()));
+        let wan = crate::site_link::parse_wan("delay_ms=25").expect("valid");
         let s = SeedsSummary::new(
             crate::tasks::PICK_JOB,
-            Some("delay_ms=25".into()),
-            50.0,
+            Some(&wan),
             vec![run(1, true, Some(23.4)), run(2, false, None)],
         );
         s.write_files(&dir).expect("written");
@@ -620,15 +769,47 @@ mod tests {
         plot(&SeedsPlotArgs {
             dirs: vec![dir.clone()],
             out: out.clone(),
+            against: Against::RoundTrip,
         })
         .expect("plotted");
         assert!(std::fs::read(&out).expect("png").starts_with(b"\x89PNG"));
         let err = plot(&SeedsPlotArgs {
             dirs: vec![dir.join("nowhere")],
-            out,
+            out: out.clone(),
+            against: Against::RoundTrip,
         })
         .expect_err("no summary");
         assert!(format!("{err:#}").contains("nowhere"), "{err:#}");
+        // A capped link beside the uncapped one: against the cap, the uncapped is the
+        // reference; against the loss, both sit at 0 % and are refused by name.
+        let capped = dir.join("capped");
+        let capped_wan = crate::site_link::parse_wan("delay_ms=25 rate_mbit=2").expect("valid");
+        SeedsSummary::new(
+            crate::tasks::PICK_JOB,
+            Some(&capped_wan),
+            vec![run(1, true, Some(25.0))],
+        )
+        .write_files(&capped)
+        .expect("written");
+        let vs_rate = dir.join("vs-rate.png");
+        plot(&SeedsPlotArgs {
+            dirs: vec![capped.clone(), dir.clone()],
+            out: vs_rate.clone(),
+            against: Against::Rate,
+        })
+        .expect("plotted against the cap");
+        assert!(
+            std::fs::read(&vs_rate)
+                .expect("png")
+                .starts_with(b"\x89PNG")
+        );
+        let err = plot(&SeedsPlotArgs {
+            dirs: vec![capped, dir.clone()],
+            out,
+            against: Against::Loss,
+        })
+        .expect_err("two summaries at 0 % loss");
+        assert!(format!("{err:#}").contains("rate_mbit=2"), "{err:#}");
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -52,8 +52,9 @@ pub fn describe(link: &Impairment) -> String {
 
 /// The two routers and the emulator between them.
 pub struct SiteLink {
+    /// Killed when dropped (`kill_on_drop`), as the emulator's task is aborted.
     routers: Vec<(Site, Child)>,
-    forward: JoinHandle<()>,
+    forward: AbortOnDrop,
     ports: [u16; 2],
     link: Impairment,
 }
@@ -88,11 +89,12 @@ impl SiteLink {
             .await
             .context("the WAN emulator's socket")?;
         let wan = proxy::bound(&listener);
-        let forward = tokio::spawn(proxy::forward(
+        // Aborted if the operator site's router fails to start, or with the link.
+        let forward = AbortOnDrop(tokio::spawn(proxy::forward(
             emulator,
             listener,
             format!("127.0.0.1:{remote_port}"),
-        ));
+        )));
         // Small kernel buffers on the WAN link, as the compose routers have them: what a
         // site sends across waits in Zenoh's priority queues, not in the kernel's.
         let local = start_router(
@@ -151,7 +153,17 @@ impl SiteLink {
                 let _ = child.wait().await;
             }
         }
-        self.forward.abort();
+        self.forward.0.abort();
+    }
+}
+
+/// A task aborted when its handle is dropped: a link dropped on an early return
+/// (a node that did not start, Ctrl-C) leaves no emulator forwarding behind it.
+struct AbortOnDrop(JoinHandle<()>);
+
+impl Drop for AbortOnDrop {
+    fn drop(&mut self) {
+        self.0.abort();
     }
 }
 
