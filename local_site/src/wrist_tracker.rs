@@ -779,8 +779,9 @@ impl WristTrackerNode {
         Self::with_in_process(cfg, bus, InProcessDevices::default()).await
     }
 
-    /// The node with the devices handed in, the configured source or panel for those
-    /// not handed in (`None`).
+    /// The node with the devices handed in (a tracker is read once per tick, stamped
+    /// with the read time), the configured source or panel for those not handed in
+    /// (`None`); registration and filters from `cfg`.
     ///
     /// # Errors
     /// A configured source cannot be opened (an [`TrackerSource::InProcess`] one not
@@ -799,20 +800,6 @@ impl WristTrackerNode {
             None => cfg.panel.open(bus).await?,
         };
         Self::with_pose_device(cfg, bus, device, panel).await
-    }
-
-    /// The node with given in-process devices (read once per tick, stamped with the
-    /// read time); registration and filters from `cfg`.
-    ///
-    /// # Errors
-    /// Bus declarations; an invalid filter config.
-    pub async fn with_devices(
-        cfg: &WristTrackerConfig,
-        bus: &Bus,
-        tracker: Box<dyn WristTracker>,
-        panel: Box<dyn OperatorPanel>,
-    ) -> anyhow::Result<Self> {
-        Self::with_pose_device(cfg, bus, PoseDevice::Other(tracker), panel).await
     }
 
     /// The node with a given pose device and panel; registration and filters from
@@ -1034,15 +1021,7 @@ pub async fn run(
     cfg: WristTrackerConfig,
     duration: Option<Duration>,
 ) -> anyhow::Result<FinalReport> {
-    let bus = Bus::open(&cfg.node_name, &cfg.bus).await?;
-    let node = WristTrackerNode::new(&cfg, &bus).await?;
-    tracing::info!(
-        zid = bus.zid(),
-        source = cfg.source.describe(),
-        frame_id = node.frame_id(),
-        "wrist tracker running"
-    );
-    teleop_node::run(bus, node, teleop_node::stop_signal(duration)).await
+    run_with_devices(cfg, InProcessDevices::default(), duration).await
 }
 
 /// What a config file cannot open: an in-process source or panel.

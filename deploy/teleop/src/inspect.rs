@@ -350,16 +350,6 @@ impl TableOutput {
     }
 }
 
-/// Whether `topic` reaches `site`: all but the other site's internal topics.
-fn reaches(topic: &TopicSpec, site: teleop_interfaces::nodes::Site) -> bool {
-    use teleop_interfaces::nodes::Site;
-    use topics::Direction;
-    !matches!(
-        (site, topic.direction),
-        (Site::Local, Direction::RemoteInternal) | (Site::Remote, Direction::LocalInternal)
-    )
-}
-
 /// [`monitor`] until `stop` completes; `banner` lines go above the table redrawn in
 /// place (plain lines leave them out: the caller prints them once). With `at_site`,
 /// only the topics that reach that site in a deployment: the other site's internal
@@ -380,7 +370,7 @@ pub async fn monitor_until(
         Some(name) => vec![spec_or_bail(name)?],
         None => topics::ALL
             .iter()
-            .filter(|t| at_site.is_none_or(|site| reaches(t, site)))
+            .filter(|t| at_site.is_none_or(|site| t.direction.reaches(site)))
             .collect(),
     };
     tokio::pin!(stop);
@@ -468,22 +458,5 @@ mod dispatch_tests {
                 .unwrap_or_else(|e| panic!("/{}: {e}", spec.name));
             assert_eq!(name, spec.type_name);
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use teleop_interfaces::nodes::Site;
-
-    #[test]
-    fn a_site_watches_what_reaches_it_not_the_other_sites_internals() {
-        assert!(!reaches(&topics::HW_PR2_ARM_STATE.spec, Site::Local));
-        assert!(reaches(&topics::PR2_JOINT_STATES.spec, Site::Local));
-        assert!(reaches(&topics::HW_PEDALS.spec, Site::Local));
-        assert!(reaches(&topics::WRIST_POSE.spec, Site::Local));
-        assert!(!reaches(&topics::HW_PEDALS.spec, Site::Remote));
-        assert!(reaches(&topics::HW_PR2_ARM_STATE.spec, Site::Remote));
-        assert!(reaches(&topics::NODE_STATUS.spec, Site::Remote));
     }
 }

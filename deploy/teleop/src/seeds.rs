@@ -320,23 +320,45 @@ type Chart<'a, 'b> = plotters::chart::ChartContext<
 fn thesis_lines(
     chart: &mut Chart<'_, '_>,
     thesis: &[ThesisFigure],
-    (x0, x1): (f64, f64),
+    x: (f64, f64),
     value: impl Fn(&ThesisFigure) -> (f64, String),
 ) -> anyhow::Result<()> {
     use plotters::prelude::*;
     for (f, colour) in thesis.iter().zip([BLUE, MAGENTA, CYAN]) {
         let (y, label) = value(f);
-        chart
-            .draw_series(DashedLineSeries::new(
-                [(x0, y), (x1, y)],
-                10,
-                6,
-                colour.stroke_width(2),
-            ))
-            .map_err(|e| anyhow::anyhow!("{e}"))?
-            .label(format!("thesis {}: {label}", f.source))
-            .legend(move |(x, y)| PathElement::new([(x, y), (x + 14, y)], colour.stroke_width(2)));
+        dashed_line(
+            chart,
+            x,
+            y,
+            colour,
+            10,
+            format!("thesis {}: {label}", f.source),
+        )?;
     }
+    Ok(())
+}
+
+/// A dashed horizontal line at `y` across `x` (dashes `dash` px long), in the legend
+/// as `label`.
+fn dashed_line(
+    chart: &mut Chart<'_, '_>,
+    (x0, x1): (f64, f64),
+    y: f64,
+    colour: plotters::style::RGBColor,
+    dash: u32,
+    label: String,
+) -> anyhow::Result<()> {
+    use plotters::prelude::*;
+    chart
+        .draw_series(DashedLineSeries::new(
+            [(x0, y), (x1, y)],
+            dash,
+            6.min(dash),
+            colour.stroke_width(2),
+        ))
+        .map_err(|e| anyhow::anyhow!("{e}"))?
+        .label(label)
+        .legend(move |(x, y)| PathElement::new([(x, y), (x + 14, y)], colour.stroke_width(2)));
     Ok(())
 }
 
@@ -663,19 +685,8 @@ fn reference_line(
     y: f64,
     label: &str,
 ) -> anyhow::Result<()> {
-    use plotters::prelude::*;
-    let grey = RGBColor(110, 110, 110);
-    chart
-        .draw_series(DashedLineSeries::new(
-            [(x.0, y), (x.1, y)],
-            4,
-            4,
-            grey.stroke_width(2),
-        ))
-        .map_err(|e| anyhow::anyhow!("{e}"))?
-        .label(format!("{label}: {y:.1}"))
-        .legend(move |(lx, ly)| PathElement::new([(lx, ly), (lx + 14, ly)], grey.stroke_width(2)));
-    Ok(())
+    let grey = plotters::style::RGBColor(110, 110, 110);
+    dashed_line(chart, x, y, grey, 4, format!("{label}: {y:.1}"))
 }
 
 #[cfg(test)]

@@ -52,9 +52,10 @@ pub fn describe(link: &Impairment) -> String {
 
 /// The two routers and the emulator between them.
 pub struct SiteLink {
-    /// Killed when dropped (`kill_on_drop`), as the emulator's task is aborted.
+    /// Killed when dropped (`kill_on_drop`).
     routers: Vec<(Site, Child)>,
-    forward: AbortOnDrop,
+    /// Held for its drop: the emulator's task ends with the link.
+    _forward: AbortOnDrop,
     ports: [u16; 2],
     link: Impairment,
 }
@@ -107,7 +108,7 @@ impl SiteLink {
         tracing::info!(link = %link.describe(), local_port, remote_port, %wan, "sites joined through the WAN emulator");
         Ok(Self {
             routers: vec![(Site::Remote, remote), (Site::Local, local)],
-            forward,
+            _forward: forward,
             ports: [local_port, remote_port],
             link,
         })
@@ -135,7 +136,8 @@ impl SiteLink {
         self.link
     }
 
-    /// Stops the routers (SIGINT, then SIGKILL after 5 s) and the emulator.
+    /// Stops the routers (SIGINT, then SIGKILL after 5 s) and the emulator (its task
+    /// is aborted as `self` drops).
     pub async fn stop(mut self) {
         for (site, child) in &mut self.routers {
             if let Some(pid) = child.id().and_then(|p| i32::try_from(p).ok()) {
@@ -153,7 +155,6 @@ impl SiteLink {
                 let _ = child.wait().await;
             }
         }
-        self.forward.0.abort();
     }
 }
 

@@ -42,6 +42,15 @@ impl Direction {
             Direction::LocalToRemote | Direction::RemoteToLocal | Direction::Both
         )
     }
+    /// True if samples of this topic reach `site` in a deployment: every topic but the
+    /// other site's internal ones.
+    pub fn reaches(self, site: crate::nodes::Site) -> bool {
+        use crate::nodes::Site;
+        !matches!(
+            (site, self),
+            (Site::Local, Direction::RemoteInternal) | (Site::Remote, Direction::LocalInternal)
+        )
+    }
 }
 
 /// Quality-of-service class of a topic.
@@ -586,6 +595,18 @@ mod tests {
         }
         assert_eq!(find("/teleop/wrist_pose/"), Some(&WRIST_POSE.spec));
         assert_eq!(find("nope"), None);
+    }
+
+    #[test]
+    fn a_site_is_reached_by_all_but_the_other_sites_internal_topics() {
+        use crate::nodes::Site;
+        assert!(!HW_PR2_ARM_STATE.spec.direction.reaches(Site::Local));
+        assert!(PR2_JOINT_STATES.spec.direction.reaches(Site::Local));
+        assert!(HW_PEDALS.spec.direction.reaches(Site::Local));
+        assert!(WRIST_POSE.spec.direction.reaches(Site::Local));
+        assert!(!HW_PEDALS.spec.direction.reaches(Site::Remote));
+        assert!(HW_PR2_ARM_STATE.spec.direction.reaches(Site::Remote));
+        assert!(NODE_STATUS.spec.direction.reaches(Site::Remote));
     }
 
     #[test]
