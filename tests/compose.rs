@@ -416,10 +416,12 @@ fn the_cut_check_judges_a_following_arm_and_explains_one_that_was_not() {
 /// `deploy/compose/check_report.py` on a report with one stop on a stale wrist pose:
 /// the clutch engagements it expects are the task's one and one per re-press the
 /// operator made on seeing the stop; an engagement the operator did not make fails.
+/// The hand goal is 1.2x the model's offline error as the report names it (no
+/// number written into the check); a report without it fails.
 #[test]
 fn the_report_check_counts_the_operators_re_presses_as_engagements() {
-    let judge = |engagements: u32, reclutches: u32| {
-        let report = serde_json::json!({
+    let judge_with = |engagements: u32, reclutches: u32, offline: Option<f64>| {
+        let mut report = serde_json::json!({
             "depth_frames": 400, "fraction_hand_fully_in_view": 1.0,
             "camera_position_error_m": {"mean": 0.003, "max": 0.016},
             "clutch_engagements": engagements, "operator_reclutches": reclutches,
@@ -428,15 +430,21 @@ fn the_report_check_counts_the_operators_re_presses_as_engagements() {
             "pr2_position_error_m": {"mean": 0.005}, "finger_target_frames": 390,
             "hand_joint_mean_error_rad": {"mean": 0.05}, "latency": [],
         });
+        if let Some(e) = offline {
+            report["hand_offline_test_error_rad"] = serde_json::json!(e);
+        }
         let path = std::env::temp_dir().join(format!(
-            "teleop-report-check-{}-{engagements}-{reclutches}.json",
-            std::process::id()
+            "teleop-report-check-{}-{engagements}-{reclutches}-{}.json",
+            std::process::id(),
+            offline.unwrap_or(-1.0)
         ));
         std::fs::write(&path, report.to_string()).unwrap();
         let out = run_check("check_report.py", &[&path.display().to_string()]);
         std::fs::remove_file(&path).unwrap();
         out
     };
+    let judge =
+        |engagements: u32, reclutches: u32| judge_with(engagements, reclutches, Some(0.0948));
     let (code, text) = judge(2, 1);
     assert_eq!(code, 0, "{text}");
     assert!(
@@ -451,6 +459,16 @@ fn the_report_check_counts_the_operators_re_presses_as_engagements() {
     assert_eq!(code, 1, "{text}");
     assert!(
         text.contains("BAD clutch engagements: 2 (goal == 1)"),
+        "{text}"
+    );
+    // The same joint error against a model with a smaller offline error: a miss.
+    let (code, text) = judge_with(2, 1, Some(0.03));
+    assert_eq!(code, 1, "{text}");
+    assert!(text.contains("BAD hand joint error mean (rad)"), "{text}");
+    let (code, text) = judge_with(2, 1, None);
+    assert_eq!(code, 1, "{text}");
+    assert!(
+        text.contains("the report names no offline test error of the hand model"),
         "{text}"
     );
 }

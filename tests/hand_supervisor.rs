@@ -467,8 +467,7 @@ fn supervisor_with(w: &World, interface: HardwareInterface) -> HandSupervisor {
 }
 
 fn quantile(mut v: Vec<f64>, q: f64) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[((v.len() - 1) as f64 * q).round() as usize]
+    teleop_node::stats::quantile(&mut v, q)
 }
 
 /// 2 s following a target across a bus with `state_lag`: the medians, over the last

@@ -57,6 +57,7 @@ use teleop_control::{
 };
 use teleop_hardware::{ArmCommand, ArmState};
 use teleop_ik::{DistanceConstraint, Goal, IkSettings, Solver};
+use teleop_interfaces::StepTimer;
 use teleop_kinematics::FixedChain;
 
 /// The UR5's joint count.
@@ -444,7 +445,7 @@ pub struct CameraArmController {
     jumped: Option<Jumped>,
     following: bool,
     q_ik: Option<SVector<f64, UR5_DOF>>,
-    last_step_s: Option<f64>,
+    step_timer: StepTimer,
     counters: CameraCounters,
     stop_counts: std::collections::BTreeMap<&'static str, u64>,
     last_stop: Option<CameraStopReason>,
@@ -513,7 +514,7 @@ impl CameraArmController {
             jumped: None,
             following: false,
             q_ik: None,
-            last_step_s: None,
+            step_timer: StepTimer::new(),
             counters: CameraCounters::default(),
             stop_counts: Default::default(),
             last_stop: None,
@@ -646,12 +647,9 @@ impl CameraArmController {
         arm: &ArmState<UR5_DOF>,
     ) -> CameraStep {
         self.counters.steps += 1;
-        let nominal = 1.0 / self.cfg.rate_hz;
-        let dt = match self.last_step_s {
-            Some(t) if now_s > t => (now_s - t).min(self.cfg.max_dt_s),
-            _ => nominal,
-        };
-        self.last_step_s = Some(now_s);
+        let dt = self
+            .step_timer
+            .step(now_s, 1.0 / self.cfg.rate_hz, self.cfg.max_dt_s);
         if let Some(h) = inputs.hand {
             self.accept_hand(now_s, h);
         }

@@ -431,14 +431,6 @@ impl OperatorDisplayNode {
         })
     }
 
-    /// The newest view of camera `name` (`top`, `side`), if one came.
-    pub fn newest_view(&self, name: &str) -> Option<&CompressedImage> {
-        self.views
-            .iter()
-            .find(|v| v.name == name)
-            .and_then(|v| v.newest.as_ref())
-    }
-
     /// Every topic the display receives, with its statistics now.
     fn topic_stats(&self) -> Vec<(&'static TopicSpec, StatsSnapshot)> {
         let mut out: Vec<(&'static TopicSpec, StatsSnapshot)> =

@@ -69,6 +69,7 @@ use teleop_ik::{Goal, IkSettings, Solver};
 use teleop_kinematics::FixedChain;
 
 use teleop_hardware::{ArmCommand, ArmState};
+use teleop_interfaces::StepTimer;
 
 /// The PR2 chain's command (5 arm joints and the Shadow hand's 2 wrist joints).
 pub type Pr2ArmCommand = ArmCommand<7>;
@@ -454,7 +455,7 @@ pub struct ArmController {
     operator_to_robot: UnitQuaternion<f64>,
     marker_to_hand: Isometry3<f64>,
     base_from_absolute: Isometry3<f64>,
-    last_step_s: Option<f64>,
+    step_timer: StepTimer,
     solver: Solver<7>,
     jump: JumpFilter,
     limiter: CartesianLimiter,
@@ -513,7 +514,7 @@ impl ArmController {
             operator_to_robot: UnitQuaternion::from_euler_angles(r, p, y),
             marker_to_hand: cfg.marker_to_hand.isometry(),
             base_from_absolute: cfg.absolute.base_from_frame.isometry(),
-            last_step_s: None,
+            step_timer: StepTimer::new(),
             cfg,
             solver,
             jump,
@@ -635,12 +636,9 @@ impl ArmController {
     /// One control step at time `now_s` (robot clock, seconds).
     pub fn step(&mut self, now_s: f64, inputs: &ArmInputs, arm: &Pr2ArmState) -> ArmStep {
         self.counters.steps += 1;
-        let nominal = 1.0 / self.cfg.rate_hz;
-        let dt = match self.last_step_s {
-            Some(t) if now_s > t => (now_s - t).min(self.cfg.max_dt_s),
-            _ => nominal,
-        };
-        self.last_step_s = Some(now_s);
+        let dt = self
+            .step_timer
+            .step(now_s, 1.0 / self.cfg.rate_hz, self.cfg.max_dt_s);
         if !(arm.position_rad.iter().all(|v| v.is_finite())
             && arm.velocity_rad_s.iter().all(|v| v.is_finite()))
         {

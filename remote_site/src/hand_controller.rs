@@ -48,6 +48,7 @@ use teleop_control::hand::{
 use teleop_control::{Closed, ConfigError, GateMode, OperatorGate, OperatorSample};
 use teleop_hardware::wire::{self, WireError};
 use teleop_hardware::{HandCommand, HandState};
+use teleop_interfaces::StepTimer;
 use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 use teleop_msgs::JointState;
 
@@ -237,7 +238,7 @@ pub struct HandSupervisor {
     lower: SVector<f64, 17>,
     upper: SVector<f64, 17>,
     target: Option<(SVector<f64, 17>, f64)>,
-    last_step_s: Option<f64>,
+    step_timer: StepTimer,
     last_hold: Option<HoldReason>,
     /// The operator has been seen letting go (enable or clutch released) since the
     /// supervisor started: until then the hand holds.
@@ -276,7 +277,7 @@ impl HandSupervisor {
             lower: lower_rad,
             upper: upper_rad,
             target: None,
-            last_step_s: None,
+            step_timer: StepTimer::new(),
             last_hold: Some(HoldReason::NoTarget),
             armed: false,
             steps: 0,
@@ -360,12 +361,11 @@ impl HandSupervisor {
         state: &HandState,
         arm_position_rad: Option<&SVector<f64, 7>>,
     ) -> HandStep {
-        let nominal = 1.0 / self.config.rate_hz;
-        let dt = match self.last_step_s {
-            Some(t) if now_s - t > 0.0 => (now_s - t).min(self.config.controller.max_dt_s),
-            _ => nominal,
-        };
-        self.last_step_s = Some(now_s);
+        let dt = self.step_timer.step(
+            now_s,
+            1.0 / self.config.rate_hz,
+            self.config.controller.max_dt_s,
+        );
         self.steps += 1;
         let hold = self.hold_reason(now_s, operator, operator_site_alive);
         if let Some(reason) = hold {

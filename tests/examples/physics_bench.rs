@@ -126,9 +126,8 @@ fn previous(seconds: f64) -> anyhow::Result<Sample> {
     })
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+fn median(v: Vec<f64>) -> f64 {
+    teleop_node::stats::median(&v)
 }
 
 fn main() -> anyhow::Result<()> {

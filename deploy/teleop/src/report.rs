@@ -23,7 +23,7 @@ use std::path::Path;
 
 use anyhow::Context;
 use hdrhistogram::Histogram;
-use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Translation3, Vector3};
 use serde::Serialize;
 use teleop_bus::{Bus, Subscriber};
 use teleop_hardware::wire;
@@ -326,19 +326,8 @@ fn realtime_scheduling(
 }
 
 fn pose_of(p: &Pose) -> Option<Isometry3<f64>> {
-    let q = Quaternion::new(
-        p.orientation.w,
-        p.orientation.x,
-        p.orientation.y,
-        p.orientation.z,
-    );
-    if !p.is_finite() || (q.norm() - 1.0).abs() > 0.01 {
-        return None;
-    }
-    Some(Isometry3::from_parts(
-        Translation3::new(p.position.x, p.position.y, p.position.z),
-        UnitQuaternion::from_quaternion(q),
-    ))
+    teleop_hardware::wire::checked_isometry(p, teleop_hardware::wire::POSE_QUATERNION_TOLERANCE)
+        .ok()
 }
 
 fn secs(t: &teleop_msgs::Time) -> f64 {

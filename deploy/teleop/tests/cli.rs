@@ -44,11 +44,7 @@ fn unknown_topic_is_a_clear_error() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn echo_node_list_and_hz_against_a_live_node() {
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
+    let port = teleop_bus::testing::free_port().unwrap();
     let cfg = BusConfig {
         domain_id: 31,
         zenoh: ZenohSettings {

@@ -370,12 +370,6 @@ impl<M: JointModel> HandEstimator<M> {
         self.stats
     }
 
-    /// The preprocessed crop of the last frame.
-    #[must_use]
-    pub fn last_input(&self) -> &[f32] {
-        &self.input
-    }
-
     /// Estimates the joints from a depth image (`16UC1` mm, through `intrinsics`) and
     /// the hand-centre estimate (camera frame, m).
     ///

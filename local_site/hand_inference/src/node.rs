@@ -32,7 +32,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion};
+use nalgebra::{Isometry3, Point3, Translation3};
 use serde::{Deserialize, Serialize};
 use teleop_bus::{Bus, BusConfig, BusError, Clock, Publisher, Subscriber};
 use teleop_hand_model::scene::HAND_CENTRE_IN_HAND_FRAME;
@@ -435,22 +435,13 @@ pub struct StampedPose {
 }
 
 /// A pose message as an isometry; `None` if a component is not finite or the
-/// quaternion's norm is more than 1 % off unit (it is normalised otherwise).
+/// quaternion's norm is more than 1 % off unit (it is normalised otherwise):
+/// [`teleop_hardware::wire::checked_isometry`] at
+/// [`teleop_hardware::wire::POSE_QUATERNION_TOLERANCE`].
 #[must_use]
 pub fn pose_from_msg(pose: &Pose) -> Option<Isometry3<f64>> {
-    if !pose.is_finite() {
-        return None;
-    }
-    let o = &pose.orientation;
-    let q = Quaternion::new(o.w, o.x, o.y, o.z);
-    if (q.norm() - 1.0).abs() > 0.01 {
-        return None;
-    }
-    let p = &pose.position;
-    Some(Isometry3::from_parts(
-        Translation3::new(p.x, p.y, p.z),
-        UnitQuaternion::from_quaternion(q),
-    ))
+    teleop_hardware::wire::checked_isometry(pose, teleop_hardware::wire::POSE_QUATERNION_TOLERANCE)
+        .ok()
 }
 
 /// `a` moved towards `b` by the fraction `s` (extrapolating for `s` outside [0, 1]):
@@ -940,17 +931,6 @@ impl<M: JointModel> HandInferenceNode<M> {
         self
     }
 
-    /// The estimator (its model and counters).
-    pub fn estimator_mut(&mut self) -> &mut HandEstimator<M> {
-        &mut self.estimator
-    }
-
-    /// The node's own counters.
-    #[must_use]
-    pub fn inference_counters(&self) -> InferenceCounters {
-        self.counters
-    }
-
     /// What became of the last depth frame.
     #[must_use]
     pub fn last_outcome(&self) -> Option<&FrameOutcome> {
@@ -1199,7 +1179,7 @@ pub async fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::Vector3;
+    use nalgebra::{UnitQuaternion, Vector3};
     use std::f64::consts::FRAC_PI_2;
 
     fn at(t: f64, pose: Isometry3<f64>) -> StampedPose {

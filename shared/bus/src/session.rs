@@ -1018,11 +1018,6 @@ impl<T: Message> Subscriber<T> {
         }
     }
 
-    /// The publisher this subscriber is locked to, if any.
-    pub fn locked_source(&self) -> Option<[u8; 16]> {
-        self.shared.lock.lock().ok().and_then(|l| *l)
-    }
-
     /// Publishers heard from (valid attachment) at or after `since_ns` (node clock),
     /// refused ones included, most recent first.
     pub fn publishers_since(&self, since_ns: i64) -> Vec<SeenPublisher> {

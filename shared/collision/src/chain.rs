@@ -274,14 +274,6 @@ impl<const N: usize> ChainVolumeDistance<N> {
         &self.volume
     }
 
-    /// Moves the volume (e.g. to the newest tracked wrist pose).
-    ///
-    /// # Errors
-    /// [`CollisionError::NonFinite`] for a non-finite pose.
-    pub fn set_volume_pose(&mut self, pose: Isometry3<f64>) -> Result<(), CollisionError> {
-        self.volume.set_pose(pose)
-    }
-
     /// The body mapping.
     pub fn bodies(&self) -> &Arc<ChainBodies<N>> {
         &self.bodies

@@ -129,6 +129,58 @@ pub fn isometry(p: &teleop_msgs::Pose) -> nalgebra::Isometry3<f64> {
     )
 }
 
+/// How far a pose message's quaternion norm may be off 1 where a person's motion
+/// arrives over the network (`f32`-rounded senders, other ROS 2 clients): 1 %.
+pub const POSE_QUATERNION_TOLERANCE: f64 = 0.01;
+
+/// Why a pose message is not a pose.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum PoseError {
+    #[error("a component of the pose is not finite")]
+    NonFinite,
+    #[error("the orientation's quaternion has norm {norm}, not 1 within {tolerance}")]
+    NotUnit { norm: f64, tolerance: f64 },
+}
+
+impl PoseError {
+    /// Short name for counters.
+    #[must_use]
+    pub fn kind(&self) -> &'static str {
+        match self {
+            PoseError::NonFinite => "non_finite",
+            PoseError::NotUnit { .. } => "not_unit",
+        }
+    }
+}
+
+/// A pose message as an isometry, checked: every component finite and the
+/// quaternion's norm within `tolerance` of 1 (then normalized). The one conversion of
+/// the nodes that act on a pose themselves (the wrist pose for the crop, the motion
+/// capture marker, the report's camera and hand poses); the arm controllers take
+/// [`isometry`] and let their jump filters judge.
+///
+/// # Errors
+/// [`PoseError`] naming what was wrong.
+pub fn checked_isometry(
+    p: &teleop_msgs::Pose,
+    tolerance: f64,
+) -> Result<nalgebra::Isometry3<f64>, PoseError> {
+    if !p.is_finite() {
+        return Err(PoseError::NonFinite);
+    }
+    let o = &p.orientation;
+    let q = nalgebra::Quaternion::new(o.w, o.x, o.y, o.z);
+    let norm = q.norm();
+    let within = (norm - 1.0).abs() <= tolerance; // false for a NaN tolerance
+    if !within {
+        return Err(PoseError::NotUnit { norm, tolerance });
+    }
+    Ok(nalgebra::Isometry3::from_parts(
+        nalgebra::Translation3::new(p.position.x, p.position.y, p.position.z),
+        nalgebra::UnitQuaternion::from_quaternion(q),
+    ))
+}
+
 /// An isometry as a pose message; `None` if any component is not finite.
 pub fn pose_msg(pose: &nalgebra::Isometry3<f64>) -> Option<teleop_msgs::Pose> {
     let t = pose.translation.vector;
@@ -355,6 +407,34 @@ pub fn finger_targets_msg(q: &SVector<f64, FINGER_DOF>, time_s: f64) -> JointSta
 mod tests {
     use super::*;
     use teleop_interfaces::joints::{PR2_ARM_JOINTS, UR5_JOINTS};
+
+    #[test]
+    fn pose_messages_are_checked_and_normalized() {
+        let mut p = teleop_msgs::Pose::default();
+        p.position.x = 0.5;
+        p.orientation.w = 1.004;
+        let iso = checked_isometry(&p, POSE_QUATERNION_TOLERANCE).expect("0.4 % off");
+        assert!((iso.rotation.quaternion().norm() - 1.0).abs() < 1e-12);
+        assert!((iso.translation.vector.x - 0.5).abs() < 1e-12);
+        assert!(matches!(
+            checked_isometry(&p, 1e-6),
+            Err(PoseError::NotUnit { .. })
+        ));
+        p.orientation.w = 0.0;
+        let e = checked_isometry(&p, POSE_QUATERNION_TOLERANCE).unwrap_err();
+        assert_eq!(e.kind(), "not_unit", "the zero quaternion: {e}");
+        p.orientation.w = 1.0;
+        p.position.y = f64::NAN;
+        assert_eq!(
+            checked_isometry(&p, POSE_QUATERNION_TOLERANCE),
+            Err(PoseError::NonFinite)
+        );
+        p.position.y = 0.0;
+        assert!(
+            checked_isometry(&p, f64::NAN).is_err(),
+            "a NaN tolerance refuses"
+        );
+    }
 
     #[test]
     fn round_trips() {

@@ -1,7 +1,8 @@
 //! Controller-side clients.
 
-use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use nalgebra::Isometry3;
 use teleop_bus::{Bus, BusError, Publisher, Subscriber};
+use teleop_hardware::wire::{PoseError, checked_isometry};
 use teleop_hardware::{
     ArmCommand, ArmHardware, ArmState, Camera, CameraKind, HandCommand, HandHardware, HandState,
     HardwareError, OperatorPanel, PedalState, WristTracker, wire,
@@ -305,32 +306,9 @@ pub struct MarkerSample {
     pub received_s: f64,
 }
 
-/// Why a tracker message was refused.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Refusal {
-    NonFinite,
-    NotNormalized,
-}
-
 /// The marker pose of a message, or why it is refused.
-fn marker_pose(msg: &PoseStamped) -> Result<Isometry3<f64>, Refusal> {
-    let p = &msg.pose;
-    if !p.is_finite() {
-        return Err(Refusal::NonFinite);
-    }
-    let q = Quaternion::new(
-        p.orientation.w,
-        p.orientation.x,
-        p.orientation.y,
-        p.orientation.z,
-    );
-    if (q.norm() - 1.0).abs() > MARKER_QUATERNION_TOLERANCE {
-        return Err(Refusal::NotNormalized);
-    }
-    Ok(Isometry3::from_parts(
-        Translation3::new(p.position.x, p.position.y, p.position.z),
-        UnitQuaternion::from_quaternion(q),
-    ))
+fn marker_pose(msg: &PoseStamped) -> Result<Isometry3<f64>, PoseError> {
+    checked_isometry(&msg.pose, MARKER_QUATERNION_TOLERANCE)
 }
 
 /// A motion-capture tracker reached over the bus ([`topics::HW_MOCAP_MARKER`] by
@@ -403,13 +381,12 @@ impl BusWristTracker {
                         received_s: r.receive_time_s(),
                     });
                 }
-                Err(Refusal::NonFinite) => {
-                    self.non_finite += 1;
-                    tracing::debug!("tracker sample refused: non-finite value");
-                }
-                Err(Refusal::NotNormalized) => {
-                    self.not_normalized += 1;
-                    tracing::debug!("tracker sample refused: quaternion not normalized");
+                Err(e) => {
+                    match e {
+                        PoseError::NonFinite => self.non_finite += 1,
+                        PoseError::NotUnit { .. } => self.not_normalized += 1,
+                    }
+                    tracing::debug!("tracker sample refused: {e}");
                 }
             }
         }

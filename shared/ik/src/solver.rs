@@ -423,9 +423,6 @@ impl<const N: usize> Solver<N> {
     pub fn settings(&self) -> &IkSettings {
         &self.settings
     }
-    pub fn settings_mut(&mut self) -> &mut IkSettings {
-        &mut self.settings
-    }
 
     fn clamp(&self, q: &SVector<f64, N>) -> SVector<f64, N> {
         SVector::from_fn(|i, _| q[i].clamp(self.lower[i], self.upper[i]))

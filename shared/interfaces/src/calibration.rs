@@ -25,15 +25,6 @@ impl TransformConfig {
         )
     }
 
-    /// The config form of `pose` (inverse of [`TransformConfig::isometry`]).
-    pub fn from_isometry(pose: &nalgebra::Isometry3<f64>) -> Self {
-        let (r, p, y) = pose.rotation.euler_angles();
-        Self {
-            translation_m: pose.translation.vector.into(),
-            rpy_deg: [r, p, y].map(f64::to_degrees),
-        }
-    }
-
     /// # Errors
     /// `"{name} must be finite"` (within 1000 m / deg).
     pub fn validate(&self, name: &str) -> Result<(), String> {

@@ -8,7 +8,8 @@
 //!   state and command topics, which node may command them);
 //! * [`nodes`]: every node binary, its site, its machine and its config file;
 //! * [`calibration`]: the operator site's default calibrations (motion capture to
-//!   UR5 base, marker to hand) and the config form of a rigid transform.
+//!   UR5 base, marker to hand) and the config form of a rigid transform;
+//! * [`timing`]: the measured, capped time step of every periodic core.
 //!
 //! No I/O here: the transport (`teleop-bus`) implements the QoS classes, the nodes use
 //! the names.
@@ -17,9 +18,11 @@ pub mod calibration;
 pub mod hardware;
 pub mod joints;
 pub mod nodes;
+pub mod timing;
 pub mod topics;
 
 pub use calibration::TransformConfig;
 pub use hardware::{ArmInterface, HandInterface};
 pub use nodes::{NodeSpec, Site};
+pub use timing::StepTimer;
 pub use topics::{Direction, Publishers, QosClass, Topic, TopicSpec};

@@ -10,7 +10,7 @@
 use std::collections::HashMap;
 use std::path::Path;
 
-use nalgebra::{Isometry3, Matrix3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Translation3, Unit, UnitQuaternion, Vector3};
 
 use crate::error::KinematicsError;
 
@@ -661,12 +661,5 @@ impl Robot {
                 .map(|j| self.joints[j.0].parent);
         }
         false
-    }
-
-    /// Centre of mass of a link in its own frame, if it has mass.
-    pub fn link_com(&self, id: LinkId) -> Option<Point3<f64>> {
-        self.links[id.0]
-            .inertial
-            .map(|i| Point3::from(i.origin.translation.vector))
     }
 }

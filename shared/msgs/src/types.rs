@@ -71,11 +71,6 @@ impl Time {
     }
 }
 
-/// Wall-clock seconds since the Unix epoch, as `f64` (controllers' time base).
-pub fn unix_seconds_now() -> f64 {
-    unix_nanos_now() as f64 * 1e-9
-}
-
 /// Wall-clock nanoseconds since the Unix epoch (0 if the clock is before 1970).
 pub fn unix_nanos_now() -> i64 {
     std::time::SystemTime::now()

@@ -17,6 +17,7 @@ pub mod router;
 pub mod runner;
 pub mod sched;
 pub mod source;
+pub mod stats;
 pub mod status;
 pub mod stop;
 pub mod tls_runtime;

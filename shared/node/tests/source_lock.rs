@@ -11,11 +11,7 @@ use teleop_msgs::{Header, OperatorInput, Time};
 use teleop_node::SourceLock;
 
 fn configs(domain_id: u32) -> (BusConfig, BusConfig) {
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
+    let port = teleop_bus::testing::free_port().unwrap();
     let settings = |listen: String, connect: Vec<String>| BusConfig {
         domain_id,
         zenoh: ZenohSettings {

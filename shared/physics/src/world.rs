@@ -756,10 +756,4 @@ impl PhysicsWorld {
         let m0 = self.data.model().dof_m0();
         self.hand.map(|j| m0[j.dof])
     }
-
-    /// The driver's position reference, rad (what the servo tracks).
-    #[must_use]
-    pub fn arm_reference(&self) -> [f64; ARM_DOF] {
-        (*self.driver.position_rad()).into()
-    }
 }

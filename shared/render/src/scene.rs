@@ -265,18 +265,6 @@ impl Scene {
         Ok(())
     }
 
-    /// Changes a shape's colour.
-    ///
-    /// # Errors
-    /// [`RenderError::UnknownShape`].
-    pub fn set_color(&mut self, id: ShapeId, color: Rgb8) -> Result<(), RenderError> {
-        self.objects
-            .get_mut(id.index())
-            .ok_or(RenderError::UnknownShape(id))?
-            .color = color;
-        Ok(())
-    }
-
     /// The shape with this id.
     #[must_use]
     pub fn get(&self, id: ShapeId) -> Option<&SceneObject> {

@@ -766,11 +766,6 @@ impl World {
         &self.perturbation
     }
 
-    /// Viscous damping of each finger joint, N m s/rad (perturbed).
-    pub fn hand_damping_nm_s_rad(&self) -> SVector<f64, 17> {
-        self.damping
-    }
-
     /// Diagonal joint-space inertia of each finger joint, kg m^2 (armature included).
     pub fn hand_inertia_kg_m2(&self) -> SVector<f64, 17> {
         self.inertia

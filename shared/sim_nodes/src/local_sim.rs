@@ -406,11 +406,6 @@ impl LocalSimNode {
         &self.world
     }
 
-    /// Counters so far.
-    pub fn sim_counters(&self) -> LocalSimCounters {
-        self.counters
-    }
-
     fn fail(&mut self, what: &str, e: impl std::fmt::Display) {
         self.counters.hardware_errors += 1;
         self.last_error = format!("{what}: {e}");

@@ -121,7 +121,8 @@ async fn main() -> anyhow::Result<()> {
 
 /// `wan_link measure`: each condition on a fresh loopback rig.
 async fn measure(seed: u64) -> anyhow::Result<()> {
-    use teleop_wan_link::measure::{Rig, delays, quantile, throughput};
+    use teleop_node::stats::quantile;
+    use teleop_wan_link::measure::{Rig, delays, throughput};
     println!(
         "| configured | messages | delay min / p50 / p99 / max (ms) | chunks hit by a loss (of chunks) |"
     );

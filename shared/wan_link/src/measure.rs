@@ -187,18 +187,3 @@ pub async fn transfer(
         max_lead_bytes,
     })
 }
-
-/// The `q`-quantile of `v` (sorted in place).
-pub fn quantile(v: &mut [f64], q: f64) -> f64 {
-    v.sort_by(f64::total_cmp);
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    #[allow(
-        clippy::cast_precision_loss,
-        clippy::cast_possible_truncation,
-        clippy::cast_sign_loss
-    )]
-    let i = ((v.len() - 1) as f64 * q).round() as usize;
-    v[i]
-}

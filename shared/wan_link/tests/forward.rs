@@ -11,8 +11,9 @@
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 
+use teleop_node::stats::quantile;
 use teleop_wan_link::Impairment;
-use teleop_wan_link::measure::{Rig, delays, quantile, throughput, transfer};
+use teleop_wan_link::measure::{Rig, delays, throughput, transfer};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
 fn imp(settings: &str) -> Impairment {

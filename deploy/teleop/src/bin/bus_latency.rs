@@ -57,6 +57,7 @@ use teleop_interfaces::topics::{self, Topic};
 use teleop_msgs::{
     Header, Image, Message, Point, Pose, PoseStamped, Quaternion, Time, unix_nanos_now,
 };
+use teleop_node::stats::loadavg;
 use zenoh::Wait;
 use zenoh::qos::{CongestionControl, Priority};
 
@@ -518,7 +519,7 @@ fn driver(cli: &Cli) -> Result<()> {
     let settings = Settings::from_cli(cli)?;
     let loadavg_start = loadavg();
     let rt = runtime()?;
-    let port = free_port()?;
+    let port = teleop_bus::testing::free_port().context("a free port on loopback")?;
     let endpoint = format!("tcp/127.0.0.1:{port}");
     let cfg = bus_config(vec![endpoint.clone()], Vec::new(), cli);
     let (bus, pose_ping, pose_pong, image_ping, image_pong) = rt.block_on(async {
@@ -770,16 +771,6 @@ fn case_report(
         driver_subscriber,
         pacing: d.pacing,
     }
-}
-
-fn loadavg() -> String {
-    std::fs::read_to_string("/proc/loadavg")
-        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
-        .unwrap_or_default()
-}
-
-fn free_port() -> Result<u16> {
-    Ok(TcpListener::bind("127.0.0.1:0")?.local_addr()?.port())
 }
 
 /// A synthetic depth image: a tilted plane with a "hand" blob nearer the camera.

@@ -332,18 +332,10 @@ fn fmt(v: Option<f64>) -> String {
     }
 }
 
+/// The median of the finite values, None without any.
 fn median(values: &[f64]) -> Option<f64> {
-    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    Some(if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    })
+    let finite: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    (!finite.is_empty()).then(|| teleop_node::stats::median(&finite))
 }
 
 /// The markdown table: per figure, each case's median with its runs in brackets, and

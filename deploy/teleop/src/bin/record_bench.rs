@@ -40,6 +40,7 @@ use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
 use serde::Serialize;
 use teleop_interfaces::nodes::NODES;
+use teleop_node::stats::{loadavg, median};
 
 // /proc CPU times, shared with the `teleop` binary (the crate has no library); the
 // launcher's resource sampler is not used here.
@@ -734,12 +735,6 @@ fn dir_bytes(dir: &Path) -> u64 {
         .sum()
 }
 
-fn loadavg() -> String {
-    std::fs::read_to_string("/proc/loadavg")
-        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
-        .unwrap_or_default()
-}
-
 fn cpu_model() -> String {
     std::fs::read_to_string("/proc/cpuinfo")
         .ok()
@@ -769,19 +764,6 @@ fn date_utc() -> String {
         })
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        f64::midpoint(v[n / 2 - 1], v[n / 2])
-    }
-}
-
 fn medians(runs: &[Run]) -> Vec<Median> {
     let mut groups: BTreeMap<(Topics, Mode), Vec<&Run>> = BTreeMap::new();
     for r in runs {
@@ -795,7 +777,7 @@ fn medians(runs: &[Run]) -> Vec<Median> {
     groups
         .into_iter()
         .map(|((topics, mode), rs)| {
-            let of = |f: fn(&Run) -> f64| median(rs.iter().map(|r| f(r)).collect());
+            let of = |f: fn(&Run) -> f64| median(&rs.iter().map(|r| f(r)).collect::<Vec<_>>());
             let ratios: Vec<f64> = rs
                 .iter()
                 .filter_map(|r| {
@@ -814,7 +796,7 @@ fn medians(runs: &[Run]) -> Vec<Median> {
                     .iter()
                     .map(|r| r.cpu_pct)
                     .fold(f64::NEG_INFINITY, f64::max),
-                cpu_ratio_to_baseline: (!ratios.is_empty()).then(|| median(ratios)),
+                cpu_ratio_to_baseline: (!ratios.is_empty()).then(|| median(&ratios)),
                 peak_rss_mb: of(|r| r.peak_rss_mb),
                 written_mb_per_s: of(|r| r.written_bytes_per_s / 1e6),
                 received_mb_per_s: of(|r| r.received_bytes_per_s / 1e6),
@@ -905,11 +887,5 @@ mod tests {
             Some(want)
         );
         assert!(parse_summary("recorded many messages").is_err());
-    }
-
-    #[test]
-    fn medians_of_odd_and_even_counts() {
-        assert!((median(vec![3.0, 1.0, 2.0]) - 2.0).abs() < 1e-12);
-        assert!((median(vec![4.0, 1.0, 2.0, 3.0]) - 2.5).abs() < 1e-12);
     }
 }

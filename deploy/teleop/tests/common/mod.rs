@@ -5,13 +5,9 @@ use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::time::Duration;
 
-/// A free TCP port on loopback.
+/// A free TCP port on loopback ([`teleop_bus::testing::free_port`]).
 pub fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
+    teleop_bus::testing::free_port().unwrap()
 }
 
 /// `GET path` on loopback: the status line and the body (None if nothing answers).

@@ -16,6 +16,7 @@ use teleop_hand_dataset::{FullFrame, Generator, GeneratorConfig, npy};
 use teleop_hand_eval::COMMITTED_MODEL;
 use teleop_hand_inference::{HandEstimate, HandEstimator, JointModel, OnnxModel, OnnxOptions};
 use teleop_hand_model::preprocess::{PreprocessConfig, Scratch, preprocess};
+use teleop_node::stats::quantile;
 
 #[derive(Debug, Parser)]
 #[command(
@@ -46,14 +47,6 @@ struct PythonResult {
     onnxruntime: String,
     times_ns: Vec<u64>,
     outputs: Vec<Vec<f32>>,
-}
-
-fn percentile(v: &mut [f64], p: f64) -> f64 {
-    v.sort_by(f64::total_cmp);
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v[((v.len() - 1) as f64 * p).round() as usize]
 }
 
 fn python(explicit: Option<PathBuf>) -> PathBuf {
@@ -201,23 +194,23 @@ fn run(args: Args) -> anyhow::Result<()> {
     let rows = [
         (
             "Rust: preprocessing (640x480 -> 96x96)",
-            percentile(&mut pre, 0.5),
-            percentile(&mut pre, 0.99),
+            quantile(&mut pre, 0.5),
+            quantile(&mut pre, 0.99),
         ),
         (
             "Rust: inference (ort)",
-            percentile(&mut inf, 0.5),
-            percentile(&mut inf, 0.99),
+            quantile(&mut inf, 0.5),
+            quantile(&mut inf, 0.99),
         ),
         (
             "Rust: end to end (HandEstimator::estimate)",
-            percentile(&mut e2e, 0.5),
-            percentile(&mut e2e, 0.99),
+            quantile(&mut e2e, 0.5),
+            quantile(&mut e2e, 0.99),
         ),
         (
             "Python onnxruntime: inference",
-            percentile(&mut py_ms, 0.5),
-            percentile(&mut py_ms, 0.99),
+            quantile(&mut py_ms, 0.5),
+            quantile(&mut py_ms, 0.99),
         ),
     ];
     println!(

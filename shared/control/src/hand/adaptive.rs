@@ -381,11 +381,6 @@ impl<const N: usize> AdaptiveImpedance<N> {
         &self.weights_k
     }
 
-    /// Damping weights `θ_d`, one vector over the joints per Gaussian, N m s/rad.
-    pub fn damping_weights(&self) -> &[SVector<f64, N>] {
-        &self.weights_d
-    }
-
     /// Feedforward weights `θ_v`, one vector over the joints per Gaussian, N m.
     pub fn feedforward_weights(&self) -> &[SVector<f64, N>] {
         &self.weights_v

@@ -7,7 +7,8 @@
 //! ```
 //!
 //! `τ0` is a constant bias from the configuration (default 0), `G` the gravity torque
-//! of the input. No state: `dt` is only checked.
+//! of the input. No state: `dt` is only checked. With `τ0 = 0` it is the position
+//! mode's PD servo ([`FixedImpedance::pd_servo`]).
 
 use nalgebra::SVector;
 
@@ -37,6 +38,22 @@ impl<const N: usize> FixedImpedance<N> {
         max_effort_nm: SVector<f64, N>,
     ) -> Result<Self, ConfigError> {
         config.validate()?;
+        Self::with_gains(
+            config.stiffness_nm_rad.to_vector(),
+            config.damping_nm_s_rad.to_vector(),
+            config.bias_nm.to_vector(),
+            max_effort_nm,
+        )
+    }
+
+    /// The law with validated gains (the configs check them) and effort limits that
+    /// are checked here.
+    pub(crate) fn with_gains(
+        stiffness_nm_rad: SVector<f64, N>,
+        damping_nm_s_rad: SVector<f64, N>,
+        bias_nm: SVector<f64, N>,
+        max_effort_nm: SVector<f64, N>,
+    ) -> Result<Self, ConfigError> {
         check_vector(
             "max_effort_nm",
             &max_effort_nm,
@@ -44,9 +61,9 @@ impl<const N: usize> FixedImpedance<N> {
             MAX_CONFIG_VALUE,
         )?;
         Ok(Self {
-            stiffness_nm_rad: config.stiffness_nm_rad.to_vector(),
-            damping_nm_s_rad: config.damping_nm_s_rad.to_vector(),
-            bias_nm: config.bias_nm.to_vector(),
+            stiffness_nm_rad,
+            damping_nm_s_rad,
+            bias_nm,
             max_effort_nm,
         })
     }

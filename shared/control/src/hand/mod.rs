@@ -9,7 +9,7 @@
 //!
 //! | mode | law (per joint, `e = q - q_d`, `ė = q̇ - q̇_d`) | core |
 //! |---|---|---|
-//! | [`HandMode::Position`] | `τ = G - Kp e - Kd ė`, or the target itself for the hardware's servo | [`PdServo`] |
+//! | [`HandMode::Position`] | `τ = G - Kp e - Kd ė`, or the target itself for the hardware's servo | [`FixedImpedance::pd_servo`] |
 //! | [`HandMode::FixedImpedance`] | `τ = τ0 + G - K_s e - K_d ė`, constant gains | [`FixedImpedance`] |
 //! | [`HandMode::Adaptive`] | `τ = G - Γε - (K_s e + K_d ė) - v`, `K_s`, `K_d`, `v` adapted online (eqs. 8.1-8.17) | [`AdaptiveImpedance`] |
 //!
@@ -47,7 +47,6 @@ pub use config::{
 };
 pub use fixed::FixedImpedance;
 pub use input::JointInput;
-pub use position::PdServo;
 
 use nalgebra::SVector;
 pub use teleop_hardware::JointImpedance;
@@ -124,7 +123,7 @@ pub struct HandController<const N: usize> {
     interface: HardwareInterface,
     max_effort_nm: SVector<f64, N>,
     hold_max_effort_nm: SVector<f64, N>,
-    position: PdServo<N>,
+    position: FixedImpedance<N>,
     fixed: FixedImpedance<N>,
     adaptive: AdaptiveImpedance<N>,
     last_output: HandOutput<N>,
@@ -149,7 +148,7 @@ impl<const N: usize> HandController<N> {
             interface: HardwareInterface::default(),
             max_effort_nm,
             hold_max_effort_nm: config.hold_max_effort_nm.to_vector(),
-            position: PdServo::new(&config.position, max_effort_nm)?,
+            position: FixedImpedance::pd_servo(&config.position, max_effort_nm)?,
             fixed: FixedImpedance::new(&config.fixed_impedance, max_effort_nm)?,
             adaptive: AdaptiveImpedance::new(&config.adaptive, max_effort_nm, config.max_dt_s)?,
             last_output: HandOutput::Effort(SVector::zeros()),

@@ -6,91 +6,48 @@
 //! ```
 //!
 //! i.e. `Kp (q_d - q) + Kd (q̇_d - q̇)`, the usual servo, plus the gravity torque if
-//! one is given. No state: `dt` is only checked.
+//! one is given: the fixed-gain impedance law ([`FixedImpedance`]) with zero bias, so
+//! it is that law, built from the position mode's gains.
 
 use nalgebra::SVector;
 
-use crate::error::{ConfigError, Rejection};
-use crate::hand::config::{MAX_CONFIG_VALUE, PositionConfig, check_vector};
-use crate::hand::input::{JointInput, check_dt, clamp_effort};
+use crate::error::ConfigError;
+use crate::hand::FixedImpedance;
+use crate::hand::config::PositionConfig;
 
-/// PD servo to the target with clamped effort; see the [module docs](self).
-#[derive(Debug, Clone, PartialEq)]
-pub struct PdServo<const N: usize> {
-    stiffness_nm_rad: SVector<f64, N>,
-    damping_nm_s_rad: SVector<f64, N>,
-    max_effort_nm: SVector<f64, N>,
-}
-
-impl<const N: usize> PdServo<N> {
-    /// A servo with the gains of `config` and effort limits `max_effort_nm` (N m).
+impl<const N: usize> FixedImpedance<N> {
+    /// The PD servo: the gains of `config`, no bias, effort limits `max_effort_nm`
+    /// (N m).
     ///
     /// # Errors
     ///
     /// [`PositionConfig::validate`]'s error; [`ConfigError::OutOfRange`] for an effort
     /// limit that is not finite and positive.
-    pub fn new(
+    pub fn pd_servo(
         config: &PositionConfig<N>,
         max_effort_nm: SVector<f64, N>,
     ) -> Result<Self, ConfigError> {
         config.validate()?;
-        check_vector(
-            "max_effort_nm",
-            &max_effort_nm,
-            f64::MIN_POSITIVE,
-            MAX_CONFIG_VALUE,
-        )?;
-        Ok(Self {
-            stiffness_nm_rad: config.stiffness_nm_rad.to_vector(),
-            damping_nm_s_rad: config.damping_nm_s_rad.to_vector(),
-            max_effort_nm,
-        })
-    }
-
-    /// One period: checks `dt_s` and the input, returns the effort, N m.
-    ///
-    /// # Errors
-    ///
-    /// [`Rejection::InvalidTimeStep`], [`Rejection::NonFinite`].
-    pub fn step(&mut self, dt_s: f64, input: &JointInput<N>) -> Result<SVector<f64, N>, Rejection> {
-        check_dt(dt_s)?;
-        input.check()?;
-        Ok(self.effort(input, &self.max_effort_nm))
-    }
-
-    /// The effort for a checked `input`, clamped to `±limit_nm`.
-    pub fn effort(&self, input: &JointInput<N>, limit_nm: &SVector<f64, N>) -> SVector<f64, N> {
-        let (e, de) = input.errors();
-        let tau = input.gravity_nm
-            - self.stiffness_nm_rad.component_mul(&e)
-            - self.damping_nm_s_rad.component_mul(&de);
-        clamp_effort(&tau, limit_nm)
-    }
-
-    /// The law as a joint impedance, `τ = G + f + K (q_d - q) + D (q̇_d - q̇)`:
-    /// `(K, D, f)` = (`Kp`, `Kd`, 0).
-    pub fn impedance(&self) -> (SVector<f64, N>, SVector<f64, N>, SVector<f64, N>) {
-        (
-            self.stiffness_nm_rad,
-            self.damping_nm_s_rad,
+        Self::with_gains(
+            config.stiffness_nm_rad.to_vector(),
+            config.damping_nm_s_rad.to_vector(),
             SVector::zeros(),
+            max_effort_nm,
         )
-    }
-
-    /// Effort limits, N m.
-    pub fn max_effort_nm(&self) -> &SVector<f64, N> {
-        &self.max_effort_nm
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::hand::JointInput;
     use nalgebra::Vector2;
 
     #[test]
     fn pd_law_and_clamp() {
-        let mut s = PdServo::new(&PositionConfig::default(), Vector2::repeat(2.0)).unwrap();
+        let mut s =
+            FixedImpedance::pd_servo(&PositionConfig::default(), Vector2::repeat(2.0)).unwrap();
+        assert_eq!(s.impedance().2, Vector2::zeros(), "no bias");
         // e = 0.05 - 0.1 = -0.05, ė = 0.5: τ = 20 * 0.05 - 0.2 * 0.5 = 0.9.
         let i = JointInput::new(
             Vector2::new(0.05, 0.0),

@@ -5,8 +5,9 @@ use nalgebra::{SVector, Vector3};
 use serde::{Deserialize, Serialize};
 use teleop_kinematics::FixedChain;
 
-use super::{Intervention, SafetyConfigError, SafetyCounters, check, step_dt};
+use super::{Intervention, SafetyConfigError, SafetyCounters, check};
 use crate::{ArmCommand, ArmHardware, ArmState, HardwareError};
+use teleop_interfaces::StepTimer;
 
 /// Settings of the arm's safety layer (the joint limits come from the URDF).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -128,7 +129,7 @@ pub struct ArmSafety<const N: usize> {
     command: Option<(ArmCommand<N>, f64)>,
     timed_out: bool,
     last_output: SVector<f64, N>,
-    last_step_s: Option<f64>,
+    step_timer: StepTimer,
     counters: SafetyCounters,
 }
 
@@ -154,7 +155,7 @@ impl<const N: usize> ArmSafety<N> {
             command: None,
             timed_out: false,
             last_output: SVector::zeros(),
-            last_step_s: None,
+            step_timer: StepTimer::new(),
             counters: SafetyCounters::default(),
         })
     }
@@ -197,8 +198,10 @@ impl<const N: usize> ArmSafety<N> {
         command: Option<&ArmCommand<N>>,
         state: Option<&ArmState<N>>,
     ) -> ArmCommand<N> {
-        let dt = step_dt(self.last_step_s, now_s, self.config.max_dt_s);
-        self.last_step_s = Some(now_s);
+        // The first step, and one whose clock did not advance, count as the longest.
+        let dt = self
+            .step_timer
+            .step(now_s, self.config.max_dt_s, self.config.max_dt_s);
         self.counters.periods += 1;
         if let Some(c) = command {
             self.counters.commands += 1;

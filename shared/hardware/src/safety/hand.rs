@@ -7,8 +7,9 @@ use nalgebra::SVector;
 use serde::{Deserialize, Serialize};
 use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 
-use super::{Intervention, SafetyConfigError, SafetyCounters, check, step_dt};
+use super::{Intervention, SafetyConfigError, SafetyCounters, check};
 use crate::{FINGER_DOF, HandCommand, HandHardware, HandImpedance, HandState, HardwareError};
+use teleop_interfaces::StepTimer;
 
 type Joints = SVector<f64, FINGER_DOF>;
 
@@ -131,7 +132,7 @@ pub struct HandSafety {
     hold: Option<Joints>,
     /// Last position target sent (for the rate limit).
     last_target: Option<Joints>,
-    last_step_s: Option<f64>,
+    step_timer: StepTimer,
     counters: SafetyCounters,
 }
 
@@ -150,7 +151,7 @@ impl HandSafety {
             command: None,
             hold: None,
             last_target: None,
-            last_step_s: None,
+            step_timer: StepTimer::new(),
             counters: SafetyCounters::default(),
         })
     }
@@ -192,8 +193,10 @@ impl HandSafety {
         command: Option<&HandCommand>,
         state: Option<&HandState>,
     ) -> Option<HandCommand> {
-        let dt = step_dt(self.last_step_s, now_s, self.config.max_dt_s);
-        self.last_step_s = Some(now_s);
+        // The first step, and one whose clock did not advance, count as the longest.
+        let dt = self
+            .step_timer
+            .step(now_s, self.config.max_dt_s, self.config.max_dt_s);
         self.counters.periods += 1;
         if let Some(c) = command {
             self.counters.commands += 1;

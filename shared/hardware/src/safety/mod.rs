@@ -122,12 +122,3 @@ fn check(field: &'static str, value: f64, lo: f64, hi: f64) -> Result<(), Safety
         })
     }
 }
-
-/// The time step to use at `now_s` after a step at `last_s`: measured, at most
-/// `max_dt_s`, and `max_dt_s` for the first step or when time went backwards.
-fn step_dt(last_s: Option<f64>, now_s: f64, max_dt_s: f64) -> f64 {
-    match last_s {
-        Some(t) if now_s > t => (now_s - t).min(max_dt_s),
-        _ => max_dt_s,
-    }
-}

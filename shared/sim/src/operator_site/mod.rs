@@ -585,12 +585,6 @@ impl OperatorWorld {
         1.0 / self.cfg.mocap.rate_hz
     }
 
-    /// Counters of the motion capture.
-    #[must_use]
-    pub fn mocap_counts(&self) -> MocapCounts {
-        self.mocap.counts()
-    }
-
     /// The UR5 as its encoders measure it.
     #[must_use]
     pub fn ur5_state(&self) -> ArmState<UR5_DOF> {
