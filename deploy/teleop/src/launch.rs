@@ -31,7 +31,7 @@ use tokio::process::{Child, Command};
 use crate::report::Recorder;
 use crate::tasks::PICK_JOB;
 
-use crate::record::reports_task_done;
+use crate::record::{reports_job_failed, reports_task_done};
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct LaunchArgs {
@@ -625,8 +625,9 @@ async fn launch_once(
         let mut done_since: Option<f64> = None;
         loop {
             while let Some(r) = status.try_recv() {
-                // With a task run once: stop 1 s after the simulator reports it done.
-                if run_once && reports_task_done(&r.msg) {
+                // With a task run once: stop 1 s after the operator's simulator reports
+                // it done, or the robot's simulator reports its job failed for good.
+                if run_once && (reports_task_done(&r.msg) || reports_job_failed(&r.msg)) {
                     done_since.get_or_insert_with(|| bus.now_s());
                 }
                 recorder.on_status(&r.msg);

@@ -17,6 +17,7 @@ use teleop_node::ZenohArgs;
 
 /// The operator-site simulator's node name (its status says when the task is done).
 const LOCAL_SIM: &str = "local_sim";
+const REMOTE_SIM: &str = "remote_sim";
 
 use crate::report::Recorder;
 
@@ -47,6 +48,17 @@ pub struct ReportArgs {
 /// launch --task` and `teleop report --until-task-done` stop 1 s after it).
 pub fn reports_task_done(s: &NodeStatus) -> bool {
     s.node_name == LOCAL_SIM && s.counter("sim.task_repetitions").is_some_and(|n| n >= 1)
+}
+
+/// Whether `s` is the robot-site simulator saying its job has failed for good (timed
+/// out, or an object fell off the table): `teleop launch --task` stops then too, so an
+/// operator who can no longer finish (one waiting for feedback that a saturated link
+/// delivers seconds late) does not hold a seeded series forever.
+pub fn reports_job_failed(s: &NodeStatus) -> bool {
+    s.node_name == REMOTE_SIM
+        && ["job.failed.timed_out", "job.failed.fell_off_table"]
+            .iter()
+            .any(|c| s.counter(c).is_some_and(|n| n >= 1))
 }
 
 pub async fn run(args: ReportArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
@@ -111,4 +123,59 @@ pub async fn run(args: ReportArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
         bail!("the simulator's task did not finish before the report stopped");
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn status(node: &str, counters: &[(&str, u64)]) -> NodeStatus {
+        NodeStatus {
+            node_name: node.to_owned(),
+            counter_names: counters.iter().map(|(n, _)| (*n).to_owned()).collect(),
+            counter_values: counters.iter().map(|(_, v)| *v).collect(),
+            ..NodeStatus::default()
+        }
+    }
+
+    #[test]
+    fn a_run_ends_on_the_task_done_or_the_job_failed_for_good() {
+        assert!(reports_task_done(&status(
+            LOCAL_SIM,
+            &[("sim.task_repetitions", 1)]
+        )));
+        assert!(!reports_task_done(&status(
+            LOCAL_SIM,
+            &[("sim.task_repetitions", 0)]
+        )));
+        assert!(!reports_task_done(&status(
+            REMOTE_SIM,
+            &[("sim.task_repetitions", 1)]
+        )));
+        let running = [
+            ("job.lifted", 1),
+            ("job.succeeded", 0),
+            ("job.failed.timed_out", 0),
+            ("job.failed.fell_off_table", 0),
+        ];
+        assert!(!reports_job_failed(&status(REMOTE_SIM, &running)));
+        for failure in ["job.failed.timed_out", "job.failed.fell_off_table"] {
+            let mut c = running;
+            for (n, v) in &mut c {
+                if *n == failure {
+                    *v = 1;
+                }
+            }
+            assert!(reports_job_failed(&status(REMOTE_SIM, &c)), "{failure}");
+            assert!(
+                !reports_job_failed(&status(LOCAL_SIM, &c)),
+                "only the robot site's simulator judges the job"
+            );
+        }
+        // A success ends the run through the operator's return, not here.
+        assert!(!reports_job_failed(&status(
+            REMOTE_SIM,
+            &[("job.succeeded", 1)]
+        )));
+    }
 }
