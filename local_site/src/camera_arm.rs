@@ -10,17 +10,19 @@
 //!   frame's Y axis (Fig. 3.6), looking back at the hand centre, with the image's "up"
 //!   along the fingers. **Side:** the hand frame's +Y is the palm normal of a right
 //!   hand (`Y = MF x RF`), so [`ViewSide::Palm`] (default) puts the camera in front of
-//!   the palm, looking along -Y: the angle between the view direction and the hand's Y
-//!   axis is 180 deg, inside the [150, 180] deg band where the thesis's viewpoint
-//!   analysis (ch. 5.4.4, Fig. 5.12) found most joints best estimated, and the view the
-//!   hand networks were trained on. [`ViewSide::Back`] looks at the back of the hand.
+//!   the palm, looking back along -Y: where ch. 7 puts it ("40 cm back along the Y-axis
+//!   of the hand"), beta = 0 of ch. 5.4.4's recommended [0, 30] deg if beta is read
+//!   hand-to-camera, and the side the hand networks were trained on
+//!   (docs/local-site.md, "Which side of the hand"). [`ViewSide::Back`] looks at the
+//!   back of the hand.
 //!   **Within reach:** a goal farther than `max_reach_m` (0.75 m) from the UR5's
 //!   shoulder (a hand turned so its palm faces away from the arm, as in pouring) is
 //!   moved round the hand, at the same standoff and still looking at it, to the nearest
 //!   reachable view ([`camera_goal_within_reach`]).
 //! * **IK.** A pose goal (weight 1, rotation weighed by `rotation_scale`), a
-//!   regularization goal toward the previous solution (thesis: 0.5 as bio_ik weighs it;
-//!   1 over-smoothed by ~10 cm on fast motion), the thesis's anti-redundancy rule (the
+//!   regularization goal toward the previous solution (the thesis's 0.5 in bio_ik's
+//!   terms, but without bio_ik's per-joint factors: docs/remote-site.md; 1
+//!   over-smoothed by ~10 cm on fast motion), the thesis's anti-redundancy rule (the
 //!   forearm's and the second wrist link's z axes stay more than
 //!   `redundancy_margin_deg` away from the inverse of their directions at start, so the
 //!   elbow and wrist do not flip), and a keep-out goal holding every moving link at
@@ -32,7 +34,9 @@
 //!   `camera_arm.rejected_collision`.
 //! * **Limits.** The camera target passes the Cartesian limiter (0.2 m/s, 2 rad/s,
 //!   2 m/s^2), the joint velocities the joint limiter (<= 3 rad/s, direction kept,
-//!   positions never driven past their limits). Velocity law: eq. 6.1, as the PR2 arm.
+//!   positions never driven past their limits). Velocity law: eq. 6.1, the thesis's
+//!   PR2 arm law (ch. 6.2.3), used here for the UR5 too; the thesis's UR5 had "30 Hz
+//!   joint-space trajectory generation" from bio_ik (ch. 7) and gives no such law for it.
 //! * **Pedals.** The arm moves only with fresh operator input (`input_deadline_s`),
 //!   the enable switch held and the left pedal (camera stop) released; otherwise zero
 //!   velocity at once. It needs no clutch: it follows the hand absolutely.
@@ -94,15 +98,19 @@ pub struct CameraArmConfig {
     pub look_at_in_hand_m: [f64; 3],
     /// Weight of the rotation error in the pose goal (as the PR2 arm's).
     pub rotation_scale: f64,
-    /// Regularization weight as bio_ik weighs it, at 30 Hz (thesis: 0.5). Default 0.2,
+    /// Regularization weight as bio_ik weighs goals, at 30 Hz, without bio_ik's per-joint
+    /// factors (the thesis's 0.5 is 0.0069 per UR5 joint with them: docs/remote-site.md,
+    /// "What that mapping leaves out"). Default 0.2,
     /// `d1` 1.0 and feedback 10 /s, as the PR2 arm's: measured in the closed loop
-    /// (docs/local-site.md, "Tuning the arms"), the thesis's 0.5 / 0.7 / 3 /s kept the
+    /// (docs/local-site.md, "Tuning the arms"), 0.5 (mapped as above) / 0.7 / 3 /s kept the
     /// camera 280 ms behind its goal (1.6 cm mean error on pick-and-place, 6 cm at the
     /// fastest moves); these keep it within ~50 ms (0.3 cm).
     pub regularization_weight: f64,
-    /// Feed-forward factor `d1` of eq. 6.1 (thesis: 0.7).
+    /// Feed-forward factor `d1` of eq. 6.1 (the thesis's PR2 arm: 0.7, ch. 6.4; it
+    /// gives none for the UR5).
     pub d1: f64,
-    /// Feedback gain of eq. 6.1, per second (thesis: 3).
+    /// Feedback gain of eq. 6.1, per second (the thesis's PR2 arm: `d2` = 0.1 at 30 Hz,
+    /// 3 /s; none given for the UR5).
     pub feedback_gain_per_s: f64,
     /// Anti-redundancy: the forearm's and the second wrist link's z axes stay at
     /// least this far (deg) from the inverse of their start directions.

@@ -161,7 +161,8 @@ pub enum RegularizationReference {
 /// Settings of the arm controller. Defaults are the thesis values where it gives them,
 /// except the three gains of the IK and the velocity law (regularization 0.3, `d1` 1.0,
 /// feedback 10 /s): measured in the closed loop (`teleop launch`, docs/local-site.md,
-/// "Tuning the arms"), the thesis's 0.5 / 0.7 / 3 /s made the palm follow the operator
+/// "Tuning the arms"), the thesis's 0.5 / 0.7 / 3 /s (its 0.5 mapped without bio_ik's
+/// per-joint factors, so stiffer than the thesis's) made the palm follow the operator
 /// 155 ms late (12 mm mean error on the pick-and-place task); these follow within
 /// 30-65 ms (3 mm). The thesis's values remain a config away.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -176,7 +177,11 @@ pub struct ArmControllerConfig {
     /// thesis's 30 Hz (thesis: 0.5; 1.0 over-smoothed). bio_ik minimizes
     /// `sum_i w_i^2 c_i` with each goal's cost `c_i` (position error in m^2, joint
     /// displacement in rad^2), so this weight enters our solver's cost squared: 0.5
-    /// here is 0.25 in `teleop_ik` terms. Toward the previous solution the goal
+    /// here is 0.25 in `teleop_ik` terms. bio_ik's minimal-displacement goal also
+    /// multiplies each joint's displacement by a factor from the velocity limits
+    /// (summing to 1, 0.098-0.176 for this arm), which this mapping leaves out: with
+    /// them the thesis's 0.5 is 0.0024-0.0077 per joint in our terms, 32-104x less
+    /// (docs/remote-site.md, "What that mapping leaves out"). Toward the previous solution the goal
     /// penalizes each step's joint displacement, which shrinks with the step: so that
     /// the smoothing does not change with the rate, the weight is also multiplied by
     /// `(1/30 s) / dt` ([`ArmControllerConfig::ik_regularization_weight`]). Default 0.3:
