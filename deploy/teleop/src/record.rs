@@ -19,7 +19,7 @@ use teleop_node::ZenohArgs;
 const LOCAL_SIM: &str = "local_sim";
 const REMOTE_SIM: &str = "remote_sim";
 
-use crate::report::Recorder;
+use crate::report::{JobOutcome, Recorder};
 
 #[derive(Debug, Clone, clap::Args)]
 pub struct ReportArgs {
@@ -56,9 +56,7 @@ pub fn reports_task_done(s: &NodeStatus) -> bool {
 /// delivers seconds late) does not hold a seeded series forever.
 pub fn reports_job_failed(s: &NodeStatus) -> bool {
     s.node_name == REMOTE_SIM
-        && ["job.failed.timed_out", "job.failed.fell_off_table"]
-            .iter()
-            .any(|c| s.counter(c).is_some_and(|n| n >= 1))
+        && JobOutcome::from_counters(|name| s.counter(name)).is_some_and(|j| j.failure.is_some())
 }
 
 pub async fn run(args: ReportArgs, zenoh: &ZenohArgs) -> anyhow::Result<()> {
