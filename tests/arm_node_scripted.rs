@@ -254,3 +254,30 @@ async fn the_arm_moves_only_while_the_hand_has_a_controller() {
         "a fresh press engages again"
     );
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_start_up_error_is_marked_recovered_once_its_cause_is_gone() {
+    let cfg = ArmNodeConfig {
+        hand_nodes: Vec::new(),
+        ..ArmNodeConfig::default()
+    };
+    let (mut node, script, _) = Script::start(&cfg, 28).await;
+    // Nothing from the hardware yet: a fault, named.
+    node.tick(script.clock.now_s());
+    assert_eq!(node.state(), Lifecycle::Fault);
+    let before = node.last_error();
+    assert!(
+        before == "hardware not connected: no pr2_arm state received yet",
+        "{before}"
+    );
+    // The hardware answers and the operator engages: the error is no longer current,
+    // shown as recovered with the time, the original text kept.
+    assert!(script.engage(&mut node).await, "the arm engaged");
+    let after = node.last_error();
+    assert!(
+        after.starts_with(teleop_node::errors::RECOVERED_PREFIX) && after.ends_with(&before),
+        "{after}"
+    );
+    // The scripted clock starts at 1e6 s after the epoch: 13:46:40 UTC.
+    assert!(after.contains("13:46:40"), "{after}");
+}

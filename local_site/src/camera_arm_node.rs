@@ -37,7 +37,7 @@ use teleop_interfaces::{nodes, topics};
 use teleop_msgs::{Header, JointState, Lifecycle, OperatorInput, PoseStamped, Time};
 use teleop_node::source::{self, CommanderConfig};
 use teleop_node::{
-    FinalReport, Node, NodeConfig, SchedulingConfig, SourceLock, check_controller_links,
+    FinalReport, Node, NodeConfig, NodeErrors, SchedulingConfig, SourceLock, check_controller_links,
 };
 
 use crate::camera_arm::{
@@ -140,7 +140,7 @@ pub struct CameraArmNode {
     joint_states_published: u64,
     operator_site_lost: u64,
     commander_conflicts: u64,
-    last_error: String,
+    errors: NodeErrors,
 }
 
 impl CameraArmNode {
@@ -178,7 +178,7 @@ impl CameraArmNode {
             joint_states_published: 0,
             operator_site_lost: 0,
             commander_conflicts: 0,
-            last_error: String::new(),
+            errors: NodeErrors::new(),
         })
     }
 
@@ -194,7 +194,7 @@ impl CameraArmNode {
 
     /// Publishes the camera pose (FK of the measured joints) and the joint states, once
     /// per new hardware state.
-    fn publish_state(&mut self, state: &ArmState<UR5_DOF>) {
+    fn publish_state(&mut self, now_s: f64, state: &ArmState<UR5_DOF>) {
         if state.time_s.is_nan() || state.time_s <= self.published_state_s {
             return;
         }
@@ -206,7 +206,8 @@ impl CameraArmNode {
             Ok(()) => self.joint_states_published += 1,
             Err(e) => {
                 self.publish_errors += 1;
-                self.last_error = format!("publishing the UR5 joint states: {e}");
+                let text = format!("publishing the UR5 joint states: {e}");
+                self.errors.event("publish", text, now_s);
             }
         }
         // A non-finite state gives no pose (the core stops on it).
@@ -224,7 +225,8 @@ impl CameraArmNode {
             Ok(()) => self.camera_poses_published += 1,
             Err(e) => {
                 self.publish_errors += 1;
-                self.last_error = format!("publishing the camera pose: {e}");
+                let text = format!("publishing the camera pose: {e}");
+                self.errors.event("publish", text, now_s);
             }
         }
     }
@@ -232,18 +234,21 @@ impl CameraArmNode {
     /// The pedals as the core may see them: withheld while no watched operator-site
     /// node is alive, or while poses and pedals come from different sessions and the
     /// camera is not following yet.
-    fn gated_pedals(&mut self) -> Option<PedalSample> {
+    fn gated_pedals(&mut self, now_s: f64) -> Option<PedalSample> {
         let alive = self
             .operator_site_nodes
             .iter()
             .any(|n| self.watch.is_alive(n));
         if self.site_alive && !alive {
             self.operator_site_lost += 1;
-            self.last_error = format!(
+            let text = format!(
                 "operator site lost: none of {} alive",
                 self.operator_site_nodes.join(", ")
             );
-            tracing::warn!("{}", self.last_error);
+            self.errors.condition("operator site", text, now_s);
+        }
+        if alive {
+            self.errors.resolved("operator site", now_s);
         }
         self.site_alive = alive;
         if !alive {
@@ -255,8 +260,11 @@ impl CameraArmNode {
         };
         if conflict && !self.ctrl.is_following() {
             self.commander_conflicts += 1;
-            self.last_error =
-                "hand poses and pedals come from different sessions: camera arm held".into();
+            self.errors.event(
+                "commander",
+                "hand poses and pedals come from different sessions: camera arm held",
+                now_s,
+            );
             return None;
         }
         self.pedals
@@ -269,6 +277,7 @@ impl Node for CameraArmNode {
     }
 
     fn tick(&mut self, now_s: f64) {
+        self.errors.step(now_s);
         // Not following, a silent source's lock may go (and, if configured, any lock).
         if !self.ctrl.is_following() {
             self.commander
@@ -290,16 +299,17 @@ impl Node for CameraArmNode {
         if let Some(conflict) =
             source::conflict(now_s, &mut [&mut self.wrist_sub, &mut self.input_sub])
         {
-            self.last_error = conflict;
+            self.errors.event("commander", conflict, now_s);
         }
         let inputs = CameraInputs {
             hand: self.hand,
-            pedals: self.gated_pedals(),
+            pedals: self.gated_pedals(now_s),
         };
         let command = match self.hw.read(now_s) {
             Ok(state) => {
                 self.hardware_ok = true;
-                self.publish_state(&state);
+                self.errors.resolved("hardware", now_s);
+                self.publish_state(now_s, &state);
                 let step = self.ctrl.step(now_s, &inputs, &state);
                 if let Some(
                     r @ (CameraStopReason::InvalidArmState
@@ -307,7 +317,8 @@ impl Node for CameraArmNode {
                     | CameraStopReason::TooCloseToHand),
                 ) = step.stopped
                 {
-                    self.last_error = format!("camera arm holds: {}", r.name());
+                    let text = format!("camera arm holds: {}", r.name());
+                    self.errors.event("camera arm holds", text, now_s);
                 }
                 self.last_step = Some(step);
                 step.command
@@ -315,14 +326,16 @@ impl Node for CameraArmNode {
             Err(e) => {
                 self.hardware_ok = false;
                 self.hardware_errors += 1;
-                self.last_error = format!("UR5: {e}");
+                self.errors
+                    .condition("hardware", format!("UR5: {e}"), now_s);
                 // Without a state, command a stop (the hardware stops on its own too).
                 ArmCommand::stop()
             }
         };
         if let Err(e) = self.hw.write(now_s, &command) {
             self.hardware_errors += 1;
-            self.last_error = format!("UR5: {e}");
+            self.errors
+                .event("hardware write", format!("UR5: {e}"), now_s);
         }
     }
 
@@ -374,7 +387,7 @@ impl Node for CameraArmNode {
     }
 
     fn last_error(&self) -> String {
-        self.last_error.clone()
+        self.errors.text()
     }
 
     fn shutdown(&mut self, now_s: f64) {

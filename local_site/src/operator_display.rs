@@ -38,7 +38,7 @@ use teleop_interfaces::topics::{self, Topic, TopicSpec};
 use teleop_msgs::{
     CompressedImage, FingertipPressures, Header, JointState, Lifecycle, NodeStatus, OperatorInput,
 };
-use teleop_node::{FinalReport, Node, NodeConfig, SchedulingConfig};
+use teleop_node::{FinalReport, Node, NodeConfig, NodeErrors, SchedulingConfig};
 
 use crate::display_web::{self, CAMERAS, ViewFrame, WebHub};
 
@@ -365,7 +365,7 @@ pub struct OperatorDisplayNode {
     next_state_s: f64,
     wake: Arc<tokio::sync::Notify>,
     now_s: f64,
-    last_error: String,
+    errors: NodeErrors,
 }
 
 impl OperatorDisplayNode {
@@ -427,7 +427,7 @@ impl OperatorDisplayNode {
             next_state_s: 0.0,
             wake,
             now_s: 0.0,
-            last_error: String::new(),
+            errors: NodeErrors::new(),
         })
     }
 
@@ -578,7 +578,7 @@ impl OperatorDisplayNode {
         self.next_state_s = now_s + self.state_period_s;
         match serde_json::to_string(&self.page_state()) {
             Ok(json) => web.set_state(json),
-            Err(e) => self.last_error = format!("page state: {e}"),
+            Err(e) => self.errors.event("page", format!("page state: {e}"), now_s),
         }
     }
 }
@@ -590,11 +590,13 @@ impl Node for OperatorDisplayNode {
 
     fn tick(&mut self, now_s: f64) {
         self.now_s = now_s;
+        self.errors.step(now_s);
         for (camera, v) in self.views.iter_mut().enumerate() {
             while let Some(r) = v.sub.try_recv() {
                 if let Err(e) = check_view(&r.msg) {
                     v.refused += 1;
-                    self.last_error = format!("camera view {}: {e}", v.name);
+                    let text = format!("camera view {}: {e}", v.name);
+                    self.errors.event("camera view", text, now_s);
                     continue;
                 }
                 v.received += 1;
@@ -603,7 +605,7 @@ impl Node for OperatorDisplayNode {
                 if let Some(receipts) = &self.receipts {
                     match receipts.put(&r.msg.header) {
                         Ok(()) => self.receipts_sent += 1,
-                        Err(e) => self.last_error = format!("receipt: {e}"),
+                        Err(e) => self.errors.event("receipt", format!("receipt: {e}"), now_s),
                     }
                 }
                 if let (Some(web), Ok(index)) = (&self.web, u8::try_from(camera)) {
@@ -718,7 +720,7 @@ impl Node for OperatorDisplayNode {
     }
 
     fn last_error(&self) -> String {
-        self.last_error.clone()
+        self.errors.text()
     }
 
     fn wake(&self) -> Option<Arc<tokio::sync::Notify>> {
@@ -777,8 +779,12 @@ pub async fn run_until(
             }
         }
     };
+    let now_s = bus.now_s();
     let mut node = OperatorDisplayNode::new(&cfg, &bus, web).await?;
-    node.last_error = page_error;
+    if !page_error.is_empty() {
+        // For the whole run: the page is not served again.
+        node.errors.condition("page", page_error, now_s);
+    }
     let report = teleop_node::run(bus, node, stop).await;
     if let Some((stop_tx, task)) = server {
         let _ = stop_tx.send(());

@@ -54,7 +54,7 @@ use teleop_hardware_bus::{BusPanel, BusWristTracker};
 use teleop_interfaces::calibration;
 use teleop_interfaces::topics;
 use teleop_msgs::{Header, Lifecycle, OperatorInput, PoseStamped, Time};
-use teleop_node::{FinalReport, Node, NodeConfig, Periodic, SchedulingConfig};
+use teleop_node::{FinalReport, Node, NodeConfig, NodeErrors, Periodic, SchedulingConfig};
 
 use crate::keyboard_panel::{KeyboardPanelConfig, KeyboardReader};
 use crate::tracking::bvh::{BvhStreamConfig, BvhStreamTracker};
@@ -758,7 +758,7 @@ pub struct WristTrackerNode {
     tracker_error: Option<HardwareError>,
     /// What is wrong with the pedals now.
     panel_error: Option<HardwareError>,
-    last_error: String,
+    errors: NodeErrors,
 }
 
 impl std::fmt::Debug for WristTrackerNode {
@@ -840,7 +840,7 @@ impl WristTrackerNode {
             counters: TrackerCounters::default(),
             tracker_error: Some(HardwareError::NotConnected("tracker not read yet".into())),
             panel_error: Some(HardwareError::NotConnected("pedals not read yet".into())),
-            last_error: String::new(),
+            errors: NodeErrors::new(),
         })
     }
 
@@ -869,17 +869,18 @@ impl WristTrackerNode {
         let read = self.device.read(now_s);
         let refused_after = self.device.refused();
         if refused_after.0 > refused_before.0 {
-            self.last_error = "tracker sample refused: non-finite value".into();
+            let text = "tracker sample refused: non-finite value";
+            self.errors.event("tracker sample", text, now_s);
         } else if refused_after.1 > refused_before.1 {
-            self.last_error = "tracker sample refused: quaternion not normalized".into();
+            let text = "tracker sample refused: quaternion not normalized";
+            self.errors.event("tracker sample", text, now_s);
         }
         match read {
             Ok(sample) => {
-                if let Some(e @ HardwareError::StaleState { .. }) = self.tracker_error.take() {
-                    tracing::info!("tracker back after: {e}");
-                }
+                self.tracker_error = None;
+                self.errors.resolved("tracker", now_s);
                 match sample {
-                    Some(s) => self.take_sample(&s),
+                    Some(s) => self.take_sample(now_s, &s),
                     None => self.counters.poses_missing += 1,
                 }
             }
@@ -889,15 +890,15 @@ impl WristTrackerNode {
                     && !matches!(self.tracker_error, Some(HardwareError::StaleState { .. }))
                 {
                     self.counters.stale += 1;
-                    tracing::warn!("tracker stale: {e}");
                 }
-                self.last_error = format!("tracker: {e}");
+                self.errors
+                    .condition("tracker", format!("tracker: {e}"), now_s);
                 self.tracker_error = Some(e);
             }
         }
     }
 
-    fn take_sample(&mut self, s: &Sample) {
+    fn take_sample(&mut self, now_s: f64, s: &Sample) {
         if let Some(prev) = self.last_sample_s
             && s.t_s - prev > self.dropout_after_s
         {
@@ -913,7 +914,8 @@ impl WristTrackerNode {
             }
             Verdict::Rejected(e) => {
                 tracing::debug!("wrist pose rejected: {e}");
-                self.last_error = format!("wrist pose rejected: {e}");
+                let text = format!("wrist pose rejected: {e}");
+                self.errors.event("wrist pose", text, now_s);
             }
         }
     }
@@ -942,8 +944,8 @@ impl WristTrackerNode {
         match self.pose_pub.put(&msg) {
             Ok(()) => self.counters.poses_published += 1,
             Err(e) => {
-                self.last_error = format!("publishing wrist pose: {e}");
-                tracing::warn!("publishing wrist pose: {e}");
+                let text = format!("publishing wrist pose: {e}");
+                self.errors.event("publish", text, now_s);
             }
         }
     }
@@ -954,9 +956,8 @@ impl WristTrackerNode {
         }
         match self.panel.read(now_s) {
             Ok(s) => {
-                if let Some(e @ HardwareError::StaleState { .. }) = self.panel_error.take() {
-                    tracing::info!("pedals back after: {e}");
-                }
+                self.panel_error = None;
+                self.errors.resolved("pedals", now_s);
                 let msg = OperatorInput {
                     header: Header::new(Time::from_secs_f64(now_s), ""),
                     clutch: s.clutch,
@@ -966,7 +967,10 @@ impl WristTrackerNode {
                 };
                 match self.input_pub.put(&msg) {
                     Ok(()) => self.counters.inputs_published += 1,
-                    Err(e) => self.last_error = format!("publishing operator input: {e}"),
+                    Err(e) => {
+                        let text = format!("publishing operator input: {e}");
+                        self.errors.event("publish", text, now_s);
+                    }
                 }
             }
             Err(e) => {
@@ -975,9 +979,9 @@ impl WristTrackerNode {
                     && !matches!(self.panel_error, Some(HardwareError::StaleState { .. }))
                 {
                     self.counters.inputs_stale += 1;
-                    tracing::warn!("pedals stale: {e}");
                 }
-                self.last_error = format!("pedals: {e}");
+                self.errors
+                    .condition("pedals", format!("pedals: {e}"), now_s);
                 self.panel_error = Some(e);
             }
         }
@@ -990,6 +994,7 @@ impl Node for WristTrackerNode {
     }
 
     fn tick(&mut self, now_s: f64) {
+        self.errors.step(now_s);
         self.read_tracker(now_s);
         self.publish_pose(now_s);
         self.publish_input(now_s);
@@ -1008,7 +1013,7 @@ impl Node for WristTrackerNode {
     }
 
     fn last_error(&self) -> String {
-        self.last_error.clone()
+        self.errors.text()
     }
 }
 

@@ -13,7 +13,7 @@ use teleop_interfaces::{nodes, topics};
 use teleop_msgs::{Lifecycle, OperatorInput, PoseStamped};
 use teleop_node::source::{self, CommanderConfig};
 use teleop_node::{
-    FinalReport, Node, NodeConfig, SchedulingConfig, SourceLock, check_controller_links,
+    FinalReport, Node, NodeConfig, NodeErrors, SchedulingConfig, SourceLock, check_controller_links,
 };
 
 use crate::arm_controller::{
@@ -113,7 +113,7 @@ pub struct ArmNode {
     /// The wrist poses' ages when taken (none older than the deadline).
     wrist_ages: CommandAges,
     hardware_ok: bool,
-    last_error: String,
+    errors: NodeErrors,
 }
 
 impl ArmNode {
@@ -151,7 +151,7 @@ impl ArmNode {
             rejected_frame_ids: 0,
             rejected_non_finite: 0,
             hardware_ok: false,
-            last_error: String::new(),
+            errors: NodeErrors::new(),
         })
     }
 
@@ -167,6 +167,7 @@ impl Node for ArmNode {
     }
 
     fn tick(&mut self, now_s: f64) {
+        self.errors.step(now_s);
         // Disengaged, a silent commander's lock may go (and, if configured, any lock:
         // the next clutch press may come from another site).
         if !self.ctrl.is_engaged() {
@@ -178,16 +179,21 @@ impl Node for ArmNode {
             if !pose_is_finite(&r.msg.pose) {
                 // Refused at receipt, engaged or not: it never becomes the newest pose.
                 self.rejected_non_finite += 1;
-                self.last_error = "wrist pose with a NaN or infinite value refused".into();
+                self.errors.event(
+                    "wrist pose",
+                    "wrist pose with a NaN or infinite value refused",
+                    now_s,
+                );
             } else if cfg.mode == ArmMode::Absolute
                 && r.msg.header.frame_id != cfg.absolute.frame_id
             {
                 // An absolute target in another frame would put the arm somewhere else.
                 self.rejected_frame_ids += 1;
-                self.last_error = format!(
+                let text = format!(
                     "wrist pose in frame `{}` refused: the absolute mode takes `{}` only",
                     r.msg.header.frame_id, cfg.absolute.frame_id
                 );
+                self.errors.event("wrist pose", text, now_s);
             } else if !self.wrist_ages.admit(
                 now_s,
                 r.source_timestamp_ns as f64 * 1e-9,
@@ -195,10 +201,11 @@ impl Node for ArmNode {
                 r.sequence,
             ) {
                 // Expired between receipt and this step: never executed.
-                self.last_error = format!(
+                let text = format!(
                     "wrist pose refused: older than {:.0} ms when taken",
                     self.wrist_ages.limit_s() * 1e3
                 );
+                self.errors.event("wrist pose", text, now_s);
             } else {
                 self.wrist = Some(WristSample {
                     received_s: r.receive_time_s(),
@@ -227,7 +234,7 @@ impl Node for ArmNode {
         if let Some(conflict) =
             source::conflict(now_s, &mut [&mut self.wrist_sub, &mut self.input_sub])
         {
-            self.last_error = conflict;
+            self.errors.event("commander", conflict, now_s);
         }
         let inputs = ArmInputs {
             operator: self.operator,
@@ -239,30 +246,35 @@ impl Node for ArmNode {
         let command = match self.hw.read(now_s) {
             Ok(state) => {
                 self.hardware_ok = true;
+                self.errors.resolved("hardware", now_s);
                 let latched = self.ctrl.latched();
                 let command = self.ctrl.step(now_s, &inputs, &state).command;
                 // What the operator's display shows next to the Fault state.
                 if let Some(r) = self.ctrl.latched()
                     && latched != Some(r)
                 {
-                    self.last_error = format!(
+                    let text = format!(
                         "safety stop ({}): release the clutch and press it again to go on",
                         r.name()
                     );
+                    self.errors.condition("safety stop", text, now_s);
+                }
+                if self.ctrl.latched().is_none() {
+                    self.errors.resolved("safety stop", now_s);
                 }
                 command
             }
             Err(e) => {
                 self.hardware_ok = false;
                 self.hardware_errors += 1;
-                self.last_error = e.to_string();
+                self.errors.condition("hardware", e.to_string(), now_s);
                 // Without a state, command a stop (the hardware stops on its own too).
                 Pr2ArmCommand::stop()
             }
         };
         if let Err(e) = self.hw.write(now_s, &command) {
             self.hardware_errors += 1;
-            self.last_error = e.to_string();
+            self.errors.event("hardware write", e.to_string(), now_s);
         }
     }
 
@@ -308,7 +320,7 @@ impl Node for ArmNode {
     }
 
     fn last_error(&self) -> String {
-        self.last_error.clone()
+        self.errors.text()
     }
 
     fn shutdown(&mut self, now_s: f64) {

@@ -17,7 +17,7 @@ use teleop_hardware_bus::{BusArm, BusCamera, BusHand};
 use teleop_interfaces::hardware::{PR2_ARM, SHADOW_HAND};
 use teleop_interfaces::topics;
 use teleop_msgs::{FingertipPressures, Header, JointState, Lifecycle};
-use teleop_node::{FinalReport, Node, NodeConfig, SchedulingConfig};
+use teleop_node::{FinalReport, Node, NodeConfig, NodeErrors, SchedulingConfig};
 
 use crate::view_pacer::{PacingConfig, ReceiptOutcome, ViewPacer};
 
@@ -115,7 +115,7 @@ pub struct FeedbackNode {
     hand_sent: u64,
     missing: u64,
     hardware_ok: bool,
-    last_error: String,
+    errors: NodeErrors,
 }
 
 impl FeedbackNode {
@@ -164,7 +164,7 @@ impl FeedbackNode {
             hand_sent: 0,
             missing: 0,
             hardware_ok: false,
-            last_error: String::new(),
+            errors: NodeErrors::new(),
         })
     }
 }
@@ -175,32 +175,37 @@ impl Node for FeedbackNode {
     }
 
     fn tick(&mut self, now_s: f64) {
+        self.errors.step(now_s);
         let mut ok = true;
         match self.arm.read(now_s) {
-            Ok(s) => match self.arm_pub.put(&wire::arm_state_msg(&PR2_ARM.joints, &s)) {
-                Ok(()) => self.arm_sent += 1,
-                Err(e) => self.last_error = e.to_string(),
-            },
+            Ok(s) => {
+                self.errors.resolved("arm hardware", now_s);
+                match self.arm_pub.put(&wire::arm_state_msg(&PR2_ARM.joints, &s)) {
+                    Ok(()) => self.arm_sent += 1,
+                    Err(e) => self.errors.event("publish", e.to_string(), now_s),
+                }
+            }
             Err(e) => {
                 ok = false;
                 self.missing += 1;
-                self.last_error = e.to_string();
+                self.errors.condition("arm hardware", e.to_string(), now_s);
             }
         }
         match self.hand.read(now_s) {
             Ok(s) => {
+                self.errors.resolved("hand hardware", now_s);
                 match self.hand_pub.put(&wire::hand_state_msg(&s)) {
                     Ok(()) => self.hand_sent += 1,
-                    Err(e) => self.last_error = e.to_string(),
+                    Err(e) => self.errors.event("publish", e.to_string(), now_s),
                 }
                 if let Err(e) = self.pressure_pub.put(&wire::tactile_msg(&s)) {
-                    self.last_error = e.to_string();
+                    self.errors.event("publish", e.to_string(), now_s);
                 }
             }
             Err(e) => {
                 ok = false;
                 self.missing += 1;
-                self.last_error = e.to_string();
+                self.errors.condition("hand hardware", e.to_string(), now_s);
             }
         }
         self.hardware_ok = ok;
@@ -217,7 +222,8 @@ impl Node for FeedbackNode {
         for i in order {
             let c = &mut self.cameras[i];
             if let Err(e) = c.forward(now_s, i, &mut self.pacer) {
-                self.last_error = format!("camera {}: {e}", c.name);
+                self.errors
+                    .event("camera", format!("camera {}: {e}", c.name), now_s);
             }
         }
     }
@@ -267,7 +273,7 @@ impl Node for FeedbackNode {
     }
 
     fn last_error(&self) -> String {
-        self.last_error.clone()
+        self.errors.text()
     }
 }
 

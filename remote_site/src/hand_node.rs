@@ -15,7 +15,7 @@ use teleop_interfaces::{nodes, topics};
 use teleop_msgs::{JointState, Lifecycle, OperatorInput};
 use teleop_node::source::{self, CommanderConfig};
 use teleop_node::{
-    FinalReport, LatencyHistogram, Node, NodeConfig, SchedulingConfig, SourceLock,
+    FinalReport, LatencyHistogram, Node, NodeConfig, NodeErrors, SchedulingConfig, SourceLock,
     check_controller_links,
 };
 
@@ -94,7 +94,7 @@ pub struct HandNode {
     capture_to_received: LatencyHistogram,
     /// The targets' ages when taken (none older than the deadline).
     target_ages: CommandAges,
-    last_error: String,
+    errors: NodeErrors,
 }
 
 impl HandNode {
@@ -136,7 +136,7 @@ impl HandNode {
                 "targets.sent_to_taken",
                 &bus.guard_settings(&topics::HAND_JOINT_TARGETS.spec),
             ),
-            last_error: String::new(),
+            errors: NodeErrors::new(),
         })
     }
 
@@ -152,6 +152,7 @@ impl Node for HandNode {
     }
 
     fn tick(&mut self, now_s: f64) {
+        self.errors.step(now_s);
         // Holding, a silent commander's lock may go (and, if configured, any lock).
         if self.hand.hold_reason_now().is_some() {
             self.commander
@@ -164,16 +165,17 @@ impl Node for HandNode {
                 .admit(now_s, sent_s, r.publisher_gid, r.sequence)
             {
                 // Expired between receipt and this step: never executed.
-                self.last_error = format!(
+                let text = format!(
                     "finger targets refused: older than {:.0} ms when taken",
                     self.target_ages.limit_s() * 1e3
                 );
+                self.errors.event("finger targets", text, now_s);
             } else {
                 match self.hand.accept_target(&r.msg, r.receive_time_s()) {
                     Ok(()) => self
                         .capture_to_received
                         .record_s(r.receive_time_s() - r.msg.header.stamp.as_secs_f64()),
-                    Err(e) => self.last_error = e.to_string(),
+                    Err(e) => self.errors.event("finger targets", e.to_string(), now_s),
                 }
             }
         }
@@ -188,7 +190,7 @@ impl Node for HandNode {
         if let Some(conflict) =
             source::conflict(now_s, &mut [&mut self.target_sub, &mut self.input_sub])
         {
-            self.last_error = conflict;
+            self.errors.event("commander", conflict, now_s);
         }
         let alive = self
             .operator_site_nodes
@@ -204,6 +206,7 @@ impl Node for HandNode {
         match self.hw.read(now_s) {
             Ok(state) => {
                 self.hardware_ok = true;
+                self.errors.resolved("hardware", now_s);
                 self.hand_position = Some(state.position_rad);
                 let out = self.hand.step(
                     now_s,
@@ -214,17 +217,17 @@ impl Node for HandNode {
                 );
                 if let Err(e) = self.hw.write(now_s, &out.command) {
                     self.hardware_errors += 1;
-                    self.last_error = e.to_string();
+                    self.errors.event("hardware write", e.to_string(), now_s);
                 }
             }
             Err(e) => {
                 self.hardware_ok = false;
                 self.hardware_errors += 1;
-                self.last_error = e.to_string();
+                self.errors.condition("hardware", e.to_string(), now_s);
                 if let Some(cmd) = self.hand.hardware_lost()
                     && let Err(e) = self.hw.write(now_s, &cmd)
                 {
-                    self.last_error = e.to_string();
+                    self.errors.event("hardware write", e.to_string(), now_s);
                 }
             }
         }
@@ -252,7 +255,7 @@ impl Node for HandNode {
     }
 
     fn last_error(&self) -> String {
-        self.last_error.clone()
+        self.errors.text()
     }
 
     /// The hand holds the posture it is in through its own position servo: it stops

@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+pub mod hostile;
 pub mod scenarios;
 
 /// The repository root.

@@ -389,7 +389,9 @@ pub async fn play(args: &PlayArgs, cfg: &BusConfig) -> anyhow::Result<()> {
     let mut progress = crate::progress::Progress::stderr();
     'files: for path in mcap_files(&args.path)? {
         let buf = std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
-        for m in mcap::MessageStream::new(&buf)? {
+        let stream =
+            teleop_bag::messages(&buf).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        for m in stream {
             let Ok(m) = m else { break };
             if m.log_time < from {
                 continue;
@@ -407,7 +409,7 @@ pub async fn play(args: &PlayArgs, cfg: &BusConfig) -> anyhow::Result<()> {
                 () = &mut stop => break 'files,
                 () = tokio::time::sleep_until(due) => {}
             }
-            match p.put(m.data.into_owned()) {
+            match p.put(m.data) {
                 Ok(()) => sent += 1,
                 Err(e) => {
                     failed += 1;

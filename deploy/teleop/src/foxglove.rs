@@ -13,6 +13,8 @@ use foxglove::{PartialMetadata, RawChannel, Schema};
 use teleop_bus::{Bus, BusConfig, RawSample};
 use teleop_interfaces::TopicSpec;
 
+use crate::foxglove_front::{self, FrontCounts};
+
 /// How long the server may take to close its clients' connections when it stops.
 const SHUTDOWN_WAIT: Duration = Duration::from_secs(3);
 
@@ -55,19 +57,15 @@ fn channel(ctx: &Arc<foxglove::Context>, spec: &TopicSpec) -> anyhow::Result<Arc
         .with_context(|| format!("the Foxglove channel of /{}", spec.name))
 }
 
-/// A clear message for a server that could not start.
-fn start_error(e: foxglove::FoxgloveError, host: &str, port: u16) -> anyhow::Error {
-    match e {
-        foxglove::FoxgloveError::Bind(io) if io.kind() == std::io::ErrorKind::AddrInUse => {
-            anyhow::anyhow!(
-                "port {port} on {host} is in use (another `teleop foxglove` or a \
-                 foxglove_bridge?): choose another with --port"
-            )
-        }
-        foxglove::FoxgloveError::Bind(io) => {
-            anyhow::anyhow!("cannot listen on {host}:{port} for Foxglove: {io}")
-        }
-        other => anyhow::anyhow!("starting the Foxglove WebSocket server: {other}"),
+/// A clear message for a listening address that could not be taken.
+fn bind_error(io: &std::io::Error, host: &str, port: u16) -> anyhow::Error {
+    if io.kind() == std::io::ErrorKind::AddrInUse {
+        anyhow::anyhow!(
+            "port {port} on {host} is in use (another `teleop foxglove` or a \
+             foxglove_bridge?): choose another with --port"
+        )
+    } else {
+        anyhow::anyhow!("cannot listen on {host}:{port} for Foxglove: {io}")
     }
 }
 
@@ -94,13 +92,29 @@ pub async fn run(args: &FoxgloveArgs, cfg: &BusConfig) -> anyhow::Result<()> {
         .iter()
         .map(|s| channel(&ctx, s))
         .collect::<anyhow::Result<Vec<_>>>()?;
+    // The address clients reach is the front's (which also lets clients of the older
+    // subprotocol name in); the SDK's server listens on loopback behind it.
+    let listener = tokio::net::TcpListener::bind((args.host.as_str(), args.port))
+        .await
+        .map_err(|e| bind_error(&e, &args.host, args.port))?;
+    let port = listener
+        .local_addr()
+        .context("the Foxglove listener's address")?
+        .port();
     let server = ctx
         .websocket_server()
         .name("teleop")
-        .bind(args.host.clone(), args.port)
+        .bind("127.0.0.1", 0)
         .start()
         .await
-        .map_err(|e| start_error(e, &args.host, args.port))?;
+        .context("starting the Foxglove SDK's WebSocket server on loopback")?;
+    let upstream = std::net::SocketAddr::from(([127, 0, 0, 1], server.port()));
+    let front_counts = Arc::new(FrontCounts::default());
+    let front = tokio::spawn(foxglove_front::serve(
+        listener,
+        upstream,
+        Arc::clone(&front_counts),
+    ));
 
     let bus = Bus::open(&format!("teleop_foxglove_{}", std::process::id()), cfg)
         .await
@@ -116,9 +130,8 @@ pub async fn run(args: &FoxgloveArgs, cfg: &BusConfig) -> anyhow::Result<()> {
         );
     }
     println!(
-        "Foxglove: open ws://{}:{} in Foxglove (Open connection)",
-        args.host,
-        server.port()
+        "Foxglove: open ws://{}:{port} in Foxglove (Open connection)",
+        args.host
     );
     eprintln!(
         "bridging {} topic(s) (Ctrl-C stops); layout: deploy/foxglove/teleop-layout.json",
@@ -140,7 +153,8 @@ pub async fn run(args: &FoxgloveArgs, cfg: &BusConfig) -> anyhow::Result<()> {
         }
     }
 
-    // No more samples, then the clients told the server is going away.
+    // No more samples, then the clients told the server is going away (through the
+    // front, which then stops).
     drop(taps);
     let clients = server.client_count();
     if tokio::time::timeout(SHUTDOWN_WAIT, server.stop().wait())
@@ -149,6 +163,7 @@ pub async fn run(args: &FoxgloveArgs, cfg: &BusConfig) -> anyhow::Result<()> {
     {
         tracing::warn!("the Foxglove server did not stop within {SHUTDOWN_WAIT:?}");
     }
+    front.abort();
     for c in &channels {
         c.close();
     }
@@ -157,6 +172,13 @@ pub async fn run(args: &FoxgloveArgs, cfg: &BusConfig) -> anyhow::Result<()> {
     println!(
         "bridged for {:.1} s ({clients} client(s) connected at the end); messages per topic:",
         started.elapsed().as_secs_f64()
+    );
+    println!(
+        "handshakes: {} passed as offered, {} renamed from {}, {} refused at the front",
+        front_counts.passed.load(Ordering::Relaxed),
+        front_counts.renamed.load(Ordering::Relaxed),
+        foxglove_front::LEGACY_V1,
+        front_counts.refused.load(Ordering::Relaxed),
     );
     let width = specs.iter().map(|s| s.name.len() + 1).max().unwrap_or(0);
     for (spec, count) in specs.iter().zip(&counts) {

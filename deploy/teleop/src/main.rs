@@ -5,6 +5,7 @@ mod bag;
 mod certs;
 mod clock_pacer;
 mod foxglove;
+mod foxglove_front;
 mod inspect;
 mod launch;
 mod proc_stat;

@@ -1,5 +1,6 @@
 //! `teleop foxglove` spoken to as Foxglove speaks to it: the Foxglove WebSocket protocol
-//! (subprotocol `foxglove.sdk.v1`, JSON control messages, binary message data) over a
+//! (subprotocol `foxglove.sdk.v1`, and its older name `foxglove.websocket.v1`; JSON
+//! control messages, binary message data) over a
 //! plain WebSocket client, not through the `foxglove` crate. The bridge runs as the
 //! built binary; the samples come from a publisher on the bus in this process.
 //!
@@ -31,6 +32,8 @@ use tokio_tungstenite::tungstenite::{self, Message};
 /// The WebSocket subprotocol the Foxglove SDK's server (and so `teleop foxglove`)
 /// speaks; the Foxglove app offers it.
 const SUBPROTOCOL: &str = "foxglove.sdk.v1";
+/// The same protocol's name on the ws-protocol servers, which older clients offer.
+const LEGACY_SUBPROTOCOL: &str = "foxglove.websocket.v1";
 /// How long any one step may take before the test gives up.
 const STEP: Duration = Duration::from_secs(30);
 
@@ -167,6 +170,31 @@ async fn connect(url: &str, subprotocol: &str) -> Result<Ws, tungstenite::Error>
     Ok(ws)
 }
 
+/// Subscribes to `channel` as subscription `id` and returns the first `count`
+/// messageData frames: opcode 0x01, subscription id (u32 LE), log time (u64 LE, ns),
+/// the message as it travelled on the bus.
+async fn subscribed_frames(
+    ws: &mut Ws,
+    channel: u64,
+    id: u32,
+    count: usize,
+) -> Vec<(u32, u64, Vec<u8>)> {
+    let subscribe = json!({"op": "subscribe", "subscriptions": [{"id": id, "channelId": channel}]});
+    ws.send(Message::text(subscribe.to_string())).await.unwrap();
+    let mut frames = Vec::new();
+    while frames.len() < count {
+        let Message::Binary(frame) = next(ws).await else {
+            continue;
+        };
+        assert!(frame.len() > 13, "{} bytes", frame.len());
+        assert_eq!(frame[0], 0x01, "opcode of messageData");
+        let subscription = u32::from_le_bytes(frame[1..5].try_into().unwrap());
+        let log_time = u64::from_le_bytes(frame[5..13].try_into().unwrap());
+        frames.push((subscription, log_time, frame[13..].to_vec()));
+    }
+    frames
+}
+
 /// The next message from the server (pings are answered by the client itself).
 async fn next(ws: &mut Ws) -> Message {
     tokio::time::timeout(STEP, ws.next())
@@ -296,17 +324,46 @@ async fn a_subscribed_client_gets_the_cdr_of_the_bus_with_its_ros2_schema() {
         .unwrap();
     assert_eq!(bridge.url, format!("ws://127.0.0.1:{ws_port}"));
 
-    // A client offering only the subprotocol of the older ws-protocol servers
-    // (foxglove_bridge 0.8, Foxglove Studio before the SDK) is refused at the
-    // handshake: the SDK's server speaks `foxglove.sdk.v1` only.
-    match connect(&bridge.url, "foxglove.websocket.v1").await {
+    // What is not a WebSocket request is answered 400 by the front itself.
+    {
+        use tokio::io::{AsyncReadExt, AsyncWriteExt};
+        let mut raw = tokio::net::TcpStream::connect(bridge.url.trim_start_matches("ws://"))
+            .await
+            .unwrap();
+        raw.write_all(b"BREW /pot HTCPCP/1.0\r\n\x00\xff\r\n\r\n")
+            .await
+            .unwrap();
+        let mut answer = Vec::new();
+        tokio::time::timeout(STEP, raw.read_to_end(&mut answer))
+            .await
+            .unwrap()
+            .unwrap();
+        let answer = String::from_utf8_lossy(&answer);
+        assert!(answer.starts_with("HTTP/1.1 400 "), "{answer}");
+    }
+    // A client offering neither name is refused at the handshake (by the SDK's server).
+    match connect(&bridge.url, "some.other.protocol").await {
         Err(tungstenite::Error::Http(response)) => assert_eq!(response.status(), 400),
         Err(e) => panic!("expected HTTP 400, got {e}"),
-        Ok(_) => panic!("foxglove.websocket.v1 alone was accepted"),
+        Ok(_) => panic!("a client offering no Foxglove subprotocol was accepted"),
     }
+    // A client offering only the subprotocol name of the older ws-protocol servers
+    // (Lichtblick up to 1.21, Foxglove Studio before the SDK) is answered in that name
+    // and served the same protocol.
+    let want = BTreeSet::from([TOPIC.to_owned()]);
+    let mut legacy = connect(&bridge.url, LEGACY_SUBPROTOCOL).await.unwrap();
+    let (info, channels) = server_info_and_channels(&mut legacy, &want).await;
+    assert_eq!(info["name"], "teleop", "{info}");
+    assert_channel_is_the_topics(&channels[TOPIC], TOPIC);
+    let frames =
+        subscribed_frames(&mut legacy, channels[TOPIC]["id"].as_u64().unwrap(), 7, 3).await;
+    assert!(
+        frames.iter().all(|(sub, _, _)| *sub == 7),
+        "frames of another subscription"
+    );
+    legacy.close(None).await.ok();
 
     let mut ws = connect(&bridge.url, SUBPROTOCOL).await.unwrap();
-    let want = BTreeSet::from([TOPIC.to_owned()]);
     let (info, channels) = server_info_and_channels(&mut ws, &want).await;
     assert_eq!(info["name"], "teleop", "{info}");
     assert_eq!(
@@ -327,24 +384,11 @@ async fn a_subscribed_client_gets_the_cdr_of_the_bus_with_its_ros2_schema() {
     }
 
     let channel_id = channel["id"].as_u64().unwrap();
-    let subscribe =
-        json!({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": channel_id}]});
-    ws.send(Message::text(subscribe.to_string())).await.unwrap();
-    // messageData: opcode 0x01, subscription id (u32 LE), log time (u64 LE, ns), the
-    // message as it travelled on the bus.
     let mut decoded = Vec::new();
-    while decoded.len() < 5 {
-        let Message::Binary(frame) = next(&mut ws).await else {
-            continue;
-        };
-        assert!(frame.len() > 13, "{} bytes", frame.len());
-        assert_eq!(frame[0], 0x01, "opcode of messageData");
-        let subscription = u32::from_le_bytes(frame[1..5].try_into().unwrap());
+    for (subscription, log_time, payload) in subscribed_frames(&mut ws, channel_id, 1, 5).await {
         assert_eq!(subscription, 1);
-        let log_time = u64::from_le_bytes(frame[5..13].try_into().unwrap());
-        let payload = &frame[13..];
         assert_eq!(&payload[..4], &[0x00, 0x01, 0x00, 0x00], "CDR LE header");
-        let msg: FingertipPressures = teleop_msgs::decode(payload).unwrap();
+        let msg: FingertipPressures = teleop_msgs::decode(&payload).unwrap();
         // The log time is when the bridge received the sample: after it was stamped.
         let stamped = u64::try_from(msg.header.stamp.as_nanos()).unwrap();
         assert!(
@@ -378,6 +422,10 @@ async fn a_subscribed_client_gets_the_cdr_of_the_bus_with_its_ros2_schema() {
         .unwrap_or_else(|| panic!("no count for {TOPIC}:\n{out}"));
     let count: u64 = row.split_whitespace().nth(1).unwrap().parse().unwrap();
     assert!(count >= 5, "{row}");
+    assert!(
+        out.contains("handshakes: 2 passed as offered, 1 renamed from foxglove.websocket.v1, 1 refused at the front"),
+        "{out}"
+    );
     bus.close().await.unwrap();
 }
 

@@ -41,7 +41,7 @@ use teleop_hardware_bus::BusCamera;
 use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 use teleop_interfaces::{nodes, topics};
 use teleop_msgs::{Header, Image, JointState, Lifecycle, Pose, PoseStamped, encodings};
-use teleop_node::{FinalReport, LatencyHistogram, Node, NodeConfig, SchedulingConfig};
+use teleop_node::{FinalReport, LatencyHistogram, Node, NodeConfig, NodeErrors, SchedulingConfig};
 use teleop_render::Intrinsics;
 
 use crate::{HandEstimate, HandEstimator, InferenceError, JointModel, OnnxModel, OnnxOptions};
@@ -861,7 +861,7 @@ pub struct HandInferenceNode<M: JointModel> {
     last_frame_s: Option<f64>,
     last_hand_s: Option<f64>,
     last_outcome: Option<FrameOutcome>,
-    last_error: String,
+    errors: NodeErrors,
 }
 
 impl<M: JointModel> HandInferenceNode<M> {
@@ -918,7 +918,7 @@ impl<M: JointModel> HandInferenceNode<M> {
             last_frame_s: None,
             last_hand_s: None,
             last_outcome: None,
-            last_error: String::new(),
+            errors: NodeErrors::new(),
         })
     }
 
@@ -1072,6 +1072,7 @@ impl<M: JointModel> Node for HandInferenceNode<M> {
 
     fn tick(&mut self, now_s: f64) {
         self.last_tick_s = Some(now_s);
+        self.errors.step(now_s);
         let started = *self.started_s.get_or_insert(now_s);
         self.take_poses();
         let outcome = match self.camera.read(now_s) {
@@ -1081,30 +1082,34 @@ impl<M: JointModel> Node for HandInferenceNode<M> {
         };
         if let Some(outcome) = outcome {
             self.last_frame_s = Some(now_s);
+            self.errors.resolved("depth camera", now_s);
             match &outcome {
-                FrameOutcome::Published { .. } => {}
+                FrameOutcome::Published { .. } => self.errors.resolved("hand", now_s),
                 FrameOutcome::NoHand { foreground, .. } => {
-                    self.last_error = format!("no hand in view (foreground {foreground:.2})");
+                    let text = format!("no hand in view (foreground {foreground:.2})");
+                    self.errors.condition("hand", text, now_s);
                 }
                 FrameOutcome::NoCentre => {
-                    self.last_error = if self.image_fallback {
-                        "no hand centre: no camera and wrist poses at the frame's time, and no object in the image".into()
+                    let text = if self.image_fallback {
+                        "no hand centre: no camera and wrist poses at the frame's time, and no object in the image"
                     } else {
-                        "no hand centre: no camera and wrist poses at the frame's time (image_fallback is off)".into()
+                        "no hand centre: no camera and wrist poses at the frame's time (image_fallback is off)"
                     };
+                    self.errors.condition("hand", text, now_s);
                 }
                 FrameOutcome::Refused(e) | FrameOutcome::Failed(e) => {
                     tracing::debug!("depth frame: {e}");
-                    self.last_error.clone_from(e);
+                    self.errors.event("depth frame", e.clone(), now_s);
                 }
             }
             self.last_outcome = Some(outcome);
         } else if now_s - self.last_frame_s.unwrap_or(started) > self.no_hand_after_s {
-            self.last_error = format!(
+            let text = format!(
                 "no depth frame on {} for {:.1} s",
                 topics::HW_HAND_DEPTH.spec.name,
                 now_s - self.last_frame_s.unwrap_or(started)
             );
+            self.errors.condition("depth camera", text, now_s);
         }
     }
 
@@ -1140,7 +1145,7 @@ impl<M: JointModel> Node for HandInferenceNode<M> {
     }
 
     fn last_error(&self) -> String {
-        self.last_error.clone()
+        self.errors.text()
     }
 
     fn wake(&self) -> Option<Arc<tokio::sync::Notify>> {

@@ -196,7 +196,8 @@ function draw(s) {
     n.name, n.site + (n.machine ? " (" + n.machine + ")" : ""),
     { text: n.state, cls: "state-" + n.state }, num(n.age_s, 1),
     { text: n.alerts.map((a) => a[0] + " " + a[1]).join(", "), cls: "err" },
-    { text: n.last_error, cls: "err" }]));
+    // An error whose cause is gone reads "recovered at HH:MM:SS UTC: ..." and is muted.
+    { text: n.last_error, cls: n.last_error.startsWith("recovered at ") ? "recovered" : "err" }]));
   fillRows($("topic-table").tBodies[0], s.topics.map((t) => [
     t.name, num(t.rate_hz, 1), num(t.nominal_hz, 1), num(t.latency_p50_ms, 2),
     num(t.latency_p99_ms, 2), num(t.refused, 0), num(t.accepted, 0)]));

@@ -722,6 +722,10 @@ impl Reader {
     fn read_stream(&self, stream: TcpStream) -> String {
         let mut reader = BufReader::new(stream);
         let mut pending: Vec<u8> = Vec::new();
+        // How far `pending` is known to hold no separator: each byte is scanned once,
+        // not once per read (a sender trickling a long frame cannot make the scan
+        // quadratic).
+        let mut scanned = 0;
         loop {
             if self.stopped() {
                 return "stopped".into();
@@ -743,12 +747,17 @@ impl Reader {
                 }
                 Err(e) => return e.to_string(),
             }
-            while let Some(end) = pending.windows(2).position(|w| w == b"||") {
+            while let Some(at) = pending[scanned..].windows(2).position(|w| w == b"||") {
+                let end = scanned + at;
                 let frame: Vec<u8> = pending.drain(..end + 2).take(end).collect();
                 self.handle(&frame);
+                scanned = 0;
             }
+            // The last byte may be the first half of a separator.
+            scanned = pending.len().saturating_sub(1);
             if pending.len() > 1 << 20 {
                 pending.clear();
+                scanned = 0;
                 self.update(|s| s.counters.rejected += 1);
             }
         }

@@ -194,7 +194,23 @@ pub fn read_bag(path: &Path) -> Result<BagReport, BagError> {
 /// (no magic, no header).
 pub fn read_file(path: &Path) -> Result<FileReport, BagError> {
     let buf = std::fs::read(path).map_err(BagError::io(path))?;
-    let profile = header_profile(&buf).map_err(BagError::mcap(path))?;
+    read_bytes(path, &buf)
+}
+
+/// What the MCAP bytes `buf` hold, as [`read_file`] reads a file (`path` names them in
+/// the report and in errors). Whatever the bytes, it returns without panicking.
+///
+/// # Errors
+/// [`BagError::Mcap`] if they are not MCAP at all (no magic, no header).
+pub fn read_bytes(path: &Path, buf: &[u8]) -> Result<FileReport, BagError> {
+    let stream = crate::messages(buf).map_err(|e| BagError::Mcap {
+        path: path.to_owned(),
+        message: e.0,
+    })?;
+    let profile = crate::read::header_profile(buf).map_err(|e| BagError::Mcap {
+        path: path.to_owned(),
+        message: e.0,
+    })?;
     let mut report = FileReport {
         path: path.to_owned(),
         bytes: buf.len() as u64,
@@ -205,7 +221,6 @@ pub fn read_file(path: &Path) -> Result<FileReport, BagError> {
         profile,
         truncated: None,
     };
-    let stream = mcap::MessageStream::new(&buf).map_err(BagError::mcap(path))?;
     for m in stream {
         match m {
             Ok(m) => {
@@ -246,13 +261,66 @@ pub fn read_file(path: &Path) -> Result<FileReport, BagError> {
     Ok(report)
 }
 
-/// The header record's profile, checking the file starts as MCAP does.
-fn header_profile(buf: &[u8]) -> Result<String, mcap::McapError> {
-    match mcap::read::LinearReader::new(buf)?.next() {
-        Some(Ok(mcap::records::Record::Header(h))) => Ok(h.profile),
-        Some(Err(e)) => Err(e),
-        _ => Ok(String::new()),
+/// The most a chunk may claim to grow when decompressed: this many times its compressed
+/// size, plus [`CHUNK_GROWTH_ALLOWANCE`] bytes. (CDR compresses 2-10x; a chunk of zeros
+/// can legitimately compress ~1000x.)
+pub const MAX_CHUNK_RATIO: u64 = 1024;
+/// See [`MAX_CHUNK_RATIO`].
+pub const CHUNK_GROWTH_ALLOWANCE: u64 = 1 << 20;
+
+/// Checks that no chunk of the MCAP bytes `buf` claims an uncompressed size beyond
+/// [`MAX_CHUNK_RATIO`] times its compressed bytes (plus [`CHUNK_GROWTH_ALLOWANCE`]).
+/// The `mcap` crate's readers reserve a chunk's claimed uncompressed size before they
+/// decompress it, so a corrupt or hostile size field would otherwise make one small file
+/// allocate exabytes (found by the hostile-input runs). Walks the records' framing
+/// (opcode, length) only; a file cut short is checked as far as it goes, its last chunk
+/// by the bytes it still has. [`crate::messages`] checks this before it reads.
+///
+/// # Errors
+/// The first chunk that claims too much, with its offset and sizes.
+pub fn check_chunk_sizes(buf: &[u8]) -> Result<(), String> {
+    chunk_limits(buf).map(|_| ())
+}
+
+/// [`check_chunk_sizes`], returning the largest uncompressed size a chunk claims.
+pub(crate) fn chunk_limits(buf: &[u8]) -> Result<u64, String> {
+    const CHUNK: u8 = 0x06;
+    const FOOTER: u8 = 0x02;
+    let u64_at = |at: usize| -> Option<u64> {
+        buf.get(at..at.checked_add(8)?)
+            .and_then(|b| b.try_into().ok())
+            .map(u64::from_le_bytes)
+    };
+    let mut largest = 0;
+    let mut at = mcap::MAGIC.len();
+    while let (Some(&op), Some(len)) = (buf.get(at), u64_at(at + 1)) {
+        let body = at + 9;
+        let available = (buf.len() - body.min(buf.len())) as u64;
+        let compressed = len.min(available);
+        if op == CHUNK {
+            // Message start and end times, then the uncompressed size.
+            if let Some(claimed) = u64_at(body + 16) {
+                let most = compressed
+                    .saturating_mul(MAX_CHUNK_RATIO)
+                    .saturating_add(CHUNK_GROWTH_ALLOWANCE);
+                if claimed > most {
+                    return Err(format!(
+                        "the chunk at byte {at} claims {claimed} bytes uncompressed from \
+                         {compressed} bytes (at most {most} accepted)"
+                    ));
+                }
+                largest = largest.max(claimed);
+            }
+        }
+        if op == FOOTER || len > available {
+            break;
+        }
+        // len <= available <= buf.len(): no overflow.
+        #[allow(clippy::cast_possible_truncation)]
+        let next = body + len as usize;
+        at = next;
     }
+    Ok(largest)
 }
 
 /// Rewrites a bag's MCAP files that were cut short as whole files (every message up to
@@ -305,7 +373,14 @@ pub fn recover(dir: &Path) -> Result<BagReport, BagError> {
 /// replaces it.
 fn rewrite_whole(path: &Path) -> Result<(), BagError> {
     let buf = std::fs::read(path).map_err(BagError::io(path))?;
-    let profile = header_profile(&buf).map_err(BagError::mcap(path))?;
+    let stream = crate::messages(&buf).map_err(|e| BagError::Mcap {
+        path: path.to_owned(),
+        message: e.0,
+    })?;
+    let profile = crate::read::header_profile(&buf).map_err(|e| BagError::Mcap {
+        path: path.to_owned(),
+        message: e.0,
+    })?;
     let tmp = path.with_extension("mcap.recovering");
     let out = File::create(&tmp).map_err(BagError::io(&tmp))?;
     let mut writer = mcap::WriteOptions::new()
@@ -318,7 +393,7 @@ fn rewrite_whole(path: &Path) -> Result<(), BagError> {
         .create(BufWriter::new(out))
         .map_err(BagError::mcap(&tmp))?;
     let mut channels: BTreeMap<u16, u16> = BTreeMap::new();
-    for m in mcap::MessageStream::new(&buf).map_err(BagError::mcap(path))? {
+    for m in stream {
         let Ok(m) = m else { break };
         let c = &m.channel;
         let id = match channels.get(&c.id) {

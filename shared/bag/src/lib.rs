@@ -21,11 +21,16 @@
 mod error;
 mod info;
 mod qos;
+mod read;
 mod writer;
 
 pub use error::BagError;
-pub use info::{BagReport, FileReport, TopicReport, mcap_files, read_bag, read_file, recover};
+pub use info::{
+    BagReport, CHUNK_GROWTH_ALLOWANCE, FileReport, MAX_CHUNK_RATIO, TopicReport, check_chunk_sizes,
+    mcap_files, read_bag, read_bytes, read_file, recover,
+};
 pub use qos::{offered_qos_yaml, qos_profile};
+pub use read::{ChannelInfo, Messages, ReadError, SchemaInfo, StoredMessage, messages};
 pub use writer::{BagOptions, BagSummary, BagWriter, Compression, TopicId};
 
 /// The rosbag2 metadata version this crate writes (ROS 2 Jazzy's).

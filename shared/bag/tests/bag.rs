@@ -313,3 +313,41 @@ fn bad_options_and_existing_bags_are_refused() {
     assert!("gzip".parse::<Compression>().is_err());
     assert_eq!("lz4".parse::<Compression>().unwrap(), Compression::Lz4);
 }
+
+#[test]
+fn a_chunk_claiming_an_absurd_uncompressed_size_is_refused_not_allocated() {
+    // Found by the hostile-input runs: the `mcap` reader reserves a chunk's claimed
+    // uncompressed size before decompressing it, so one changed size field made a small
+    // file ask for exabytes and abort the process.
+    let dir = fresh_dir("absurd");
+    let mut bag = BagWriter::create(&dir, BagOptions::default()).unwrap();
+    let wrist = bag.add_topic(&topics::WRIST_POSE.spec).unwrap();
+    for i in 0..20u32 {
+        let t = T0 + u64::from(i) * 10_000_000;
+        bag.write(wrist, t, t, i + 1, &encode(&pose(i)).unwrap())
+            .unwrap();
+    }
+    let summary = bag.close().unwrap();
+    let file = dir.join(&summary.files[0]);
+    let mut bytes = std::fs::read(&file).unwrap();
+    assert!(teleop_bag::check_chunk_sizes(&bytes).is_ok());
+    assert_eq!(read_file(&file).unwrap().messages, 20);
+    // The first chunk record (opcode 0x06) after the magic and the header record; its
+    // uncompressed size is the third u64 of its body.
+    let mut at = mcap::MAGIC.len();
+    while bytes[at] != 0x06 {
+        let len = u64::from_le_bytes(bytes[at + 1..at + 9].try_into().unwrap());
+        at += 9 + usize::try_from(len).unwrap();
+    }
+    bytes[at + 9 + 16..at + 9 + 24].copy_from_slice(&(7u64 << 60).to_le_bytes());
+    std::fs::write(&file, &bytes).unwrap();
+    let e = read_file(&file).unwrap_err().to_string();
+    assert!(
+        e.contains(&file.display().to_string())
+            && e.contains("claims 8070450532247928832 bytes uncompressed"),
+        "{e}"
+    );
+    // So does recovering the bag: refused, the file left as it was.
+    assert!(recover(&dir).is_err());
+    assert_eq!(std::fs::read(&file).unwrap(), bytes);
+}

@@ -20,7 +20,12 @@ impl Refusals {
     fn count(&mut self, what: &str, e: &wire::WireError) {
         *self.by_kind.entry(e.kind()).or_default() += 1;
         self.last_error = format!("{what} command refused: {e}");
-        tracing::warn!("{}", self.last_error);
+        // The owning node's status names it (once, not per refusal, in its log).
+        tracing::debug!("{}", self.last_error);
+    }
+
+    fn total(&self) -> u64 {
+        self.by_kind.values().sum()
     }
 
     fn named(&self, prefix: &str, out: &mut Vec<(String, u64)>) {
@@ -100,6 +105,11 @@ impl<const N: usize> ArmEndpoint<N> {
         &self.refused.last_error
     }
 
+    /// How many commands were refused after the source check, all reasons.
+    pub fn refusals(&self) -> u64 {
+        self.refused.total()
+    }
+
     /// The command subscription (statistics, publishers heard from).
     pub fn command_subscriber(&self) -> &Subscriber<JointState> {
         &self.commands
@@ -174,6 +184,11 @@ impl HandEndpoint {
     /// The last refusal, if any.
     pub fn last_error(&self) -> &str {
         &self.refused.last_error
+    }
+
+    /// How many commands were refused after the source check, all reasons.
+    pub fn refusals(&self) -> u64 {
+        self.refused.total()
     }
 
     /// The command subscription.

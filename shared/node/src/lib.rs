@@ -10,6 +10,7 @@ pub mod args;
 #[cfg(feature = "certs")]
 pub mod certs;
 pub mod config;
+pub mod errors;
 pub mod latency;
 #[cfg(feature = "plot")]
 pub mod plot;
@@ -24,6 +25,7 @@ pub mod tls_runtime;
 
 pub use args::{NodeArgs, ZenohArgs};
 pub use config::{ConfigError, NodeConfig};
+pub use errors::NodeErrors;
 pub use latency::LatencyHistogram;
 pub use runner::{FinalReport, Node, Periodic, run};
 pub use sched::SchedulingConfig;

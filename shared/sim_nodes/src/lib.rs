@@ -12,3 +12,16 @@
 
 pub mod local_sim;
 pub mod remote_sim;
+
+/// A simulator's lifecycle: Inactive until its world first steps (`started`), Active
+/// while it steps and its robots' states go out (`serving`), Fault while they cannot.
+pub(crate) fn serving_state(serving: bool, started: bool) -> teleop_msgs::Lifecycle {
+    use teleop_msgs::Lifecycle;
+    if serving {
+        Lifecycle::Active
+    } else if started {
+        Lifecycle::Fault
+    } else {
+        Lifecycle::Inactive
+    }
+}

@@ -39,7 +39,7 @@ use teleop_msgs::{
     CompressedImage, Header, Image, JointState, Lifecycle, NodeStatus, OperatorInput, PoseStamped,
     TFMessage, Time,
 };
-use teleop_node::{FinalReport, Node, NodeConfig, Periodic, SchedulingConfig};
+use teleop_node::{FinalReport, Node, NodeConfig, NodeErrors, Periodic, SchedulingConfig};
 use teleop_sim::operator_site::watching::{
     Phase, RobotEye, ScenePercept, ViewGate, WatchingCounters,
 };
@@ -170,7 +170,9 @@ pub struct LocalSimNode {
     counters: LocalSimCounters,
     /// Wall time of the last depth render, µs.
     last_render_us: u64,
-    last_error: String,
+    errors: NodeErrors,
+    /// The last tick stepped the world and published the UR5's state.
+    serving: bool,
     /// The operator who watches the display (`operator = "watching"`).
     watcher: Option<Watcher>,
     /// Either operator's foot on the clutch after a safety stop of the arm, and the
@@ -393,7 +395,8 @@ impl LocalSimNode {
             next_marker_s: None,
             counters: LocalSimCounters::default(),
             last_render_us: 0,
-            last_error: String::new(),
+            errors: NodeErrors::new(),
+            serving: false,
             watcher,
             reclutch: Reclutch::new(cfg.operator_site.reclutch.clone())
                 .map_err(anyhow::Error::msg)?,
@@ -406,9 +409,10 @@ impl LocalSimNode {
         &self.world
     }
 
-    fn fail(&mut self, what: &str, e: impl std::fmt::Display) {
+    /// A failure of the part `what` at `now_s` (current while it keeps failing).
+    fn fail(&mut self, what: &'static str, e: impl std::fmt::Display, now_s: f64) {
         self.counters.hardware_errors += 1;
-        self.last_error = format!("{what}: {e}");
+        self.errors.event(what, format!("{what}: {e}"), now_s);
     }
 
     fn pose_stamped(now_s: f64, frame: &str, pose: &Isometry3<f64>) -> Option<PoseStamped> {
@@ -465,19 +469,26 @@ impl Node for LocalSimNode {
     }
 
     fn tick(&mut self, now_s: f64) {
+        self.errors.step(now_s);
         // The camera arm's command, through the safety layer (a period without one is
         // filtered too: the command timeout).
+        let refused = self.ur5_endpoint.refusals();
         let ur5 = match self.ur5_endpoint.take_command() {
             Some(c) => self.ur5.write(now_s, &c),
             None => self.ur5.idle(now_s),
         };
+        if self.ur5_endpoint.refusals() > refused {
+            let text = self.ur5_endpoint.last_error().to_owned();
+            self.errors.event("ur5 command", text, now_s);
+        }
         if let Err(e) = ur5 {
-            self.fail("ur5", e);
+            self.fail("ur5", e, now_s);
         }
         let start = *self.start_s.get_or_insert(now_s);
         let world = self.world.clone();
         let Ok(mut world) = world.lock() else {
-            self.fail("world", "lock poisoned");
+            self.serving = false;
+            self.fail("world", "lock poisoned", now_s);
             return;
         };
         let tick_started = std::time::Instant::now();
@@ -492,7 +503,8 @@ impl Node for LocalSimNode {
             let (sample, error) = watcher.step(now_s);
             world.drive(sample);
             if let Some(e) = error {
-                self.last_error = format!("operator's view: {e}");
+                let text = format!("operator's view: {e}");
+                self.errors.event("operator's view", text, now_s);
             }
         }
         let operator_ms = tick_started.elapsed().as_secs_f64() * 1e3 - world_ms;
@@ -519,7 +531,7 @@ impl Node for LocalSimNode {
                     if let Some(msg) = Self::pose_stamped(capture_s, "mocap", &pose)
                         && let Err(e) = self.marker_pub.put(&msg)
                     {
-                        self.fail("mocap", e);
+                        self.fail("mocap", e, now_s);
                     }
                 }
                 MocapReading::Dropout => self.counters.marker_dropouts += 1,
@@ -528,9 +540,13 @@ impl Node for LocalSimNode {
         // The UR5's encoders, stamped with the node clock as a driver would.
         let mut state = world.ur5_state();
         state.time_s = now_s;
-        if let Err(e) = self.ur5_endpoint.publish_state(&state) {
-            self.fail("ur5 state", e);
-        }
+        self.serving = match self.ur5_endpoint.publish_state(&state) {
+            Ok(()) => true,
+            Err(e) => {
+                self.fail("ur5 state", e, now_s);
+                false
+            }
+        };
         // The arm controller's status as the display shows it: a safety stop is
         // answered by letting go of the clutch and pressing it again.
         while let Some(r) = self.statuses.try_recv() {
@@ -558,20 +574,20 @@ impl Node for LocalSimNode {
                 motion_scale: intended.motion_scale,
             };
             if let Err(e) = self.pedals_pub.put(&msg) {
-                self.fail("pedals", e);
+                self.fail("pedals", e, now_s);
             }
         }
         if self.truth_due.due(now_s)
             && let Some(msg) = Self::pose_stamped(now_s, "ur5_base_link", &world.hand_pose())
             && let Err(e) = self.truth_pose_pub.put(&msg)
         {
-            self.fail("ground truth", e);
+            self.fail("ground truth", e, now_s);
         }
         let depth_started = std::time::Instant::now();
         if self.camera_due.due(now_s)
             && let Err(e) = self.publish_depth(&mut world, now_s)
         {
-            self.fail("depth camera", e);
+            self.fail("depth camera", e, now_s);
         }
         let tick_ms = tick_started.elapsed().as_secs_f64() * 1e3;
         if tick_ms > 50.0 {
@@ -586,8 +602,11 @@ impl Node for LocalSimNode {
         }
     }
 
+    /// Inactive until the world first steps and the UR5's state goes out; Active while
+    /// it does; Fault while the world cannot step or the UR5's state cannot be published
+    /// (the camera arm's controller then sees no hardware).
     fn state(&self) -> Lifecycle {
-        Lifecycle::Active
+        crate::serving_state(self.serving, self.start_s.is_some())
     }
 
     fn counters(&self) -> Vec<(String, u64)> {
@@ -639,11 +658,7 @@ impl Node for LocalSimNode {
     }
 
     fn last_error(&self) -> String {
-        if self.last_error.is_empty() {
-            self.ur5_endpoint.last_error().to_owned()
-        } else {
-            self.last_error.clone()
-        }
+        self.errors.text()
     }
 
     /// The UR5 brakes (zero velocity).

@@ -22,7 +22,7 @@ use teleop_hardware_bus::{ArmEndpoint, HandEndpoint};
 use teleop_interfaces::hardware::{PR2_ARM, SHADOW_HAND};
 use teleop_interfaces::topics;
 use teleop_msgs::{Header, Image, Lifecycle, TFMessage, Transform, TransformStamped};
-use teleop_node::{FinalReport, Node, NodeConfig, Periodic, SchedulingConfig};
+use teleop_node::{FinalReport, Node, NodeConfig, NodeErrors, Periodic, SchedulingConfig};
 use teleop_sim::{
     CameraViewsConfig, CupGraspConfig, MujocoWorld, MujocoWorldConfig, PickSceneConfig, RobotWorld,
     SceneCameras, SimArm, SimHand, TouchingTaskConfig, View, WORKING_POSTURE_RAD, World,
@@ -263,7 +263,9 @@ pub struct SimNode {
     start_s: Option<f64>,
     sim_start_s: f64,
     hardware_errors: u64,
-    last_error: String,
+    errors: NodeErrors,
+    /// The last tick stepped the world and published both robots' states.
+    serving: bool,
     /// The scene's job judged from ground truth (the pick scene), and the observations
     /// it refused.
     job: Option<teleop_physics::PickPlaceJudge>,
@@ -315,7 +317,8 @@ impl SimNode {
             start_s: None,
             sim_start_s,
             hardware_errors: 0,
-            last_error: String::new(),
+            errors: NodeErrors::new(),
+            serving: false,
             job,
             job_errors: 0,
         })
@@ -326,9 +329,15 @@ impl SimNode {
         &self.world
     }
 
-    fn fail(&mut self, what: &str, e: impl std::fmt::Display) {
+    /// An error of the part `what` at `now_s` (a condition: it holds until that part
+    /// works again, see [`Self::works`]).
+    fn fail(&mut self, what: &'static str, e: impl std::fmt::Display, now_s: f64) {
         self.hardware_errors += 1;
-        self.last_error = format!("{what}: {e}");
+        self.errors.condition(what, format!("{what}: {e}"), now_s);
+    }
+
+    fn works(&mut self, what: &'static str, now_s: f64) {
+        self.errors.resolved(what, now_s);
     }
 }
 
@@ -338,26 +347,40 @@ impl Node for SimNode {
     }
 
     fn tick(&mut self, now_s: f64) {
+        self.errors.step(now_s);
         // Commands from the controllers, through the safety layer (a period without a
         // command is filtered too: the command timeout).
+        let refused = self.arm_endpoint.refusals();
         let arm = match self.arm_endpoint.take_command() {
             Some(c) => self.arm.write(now_s, &c),
             None => self.arm.idle(now_s),
         };
-        if let Err(e) = arm {
-            self.fail("arm", e);
+        if self.arm_endpoint.refusals() > refused {
+            let text = self.arm_endpoint.last_error().to_owned();
+            self.errors.event("arm command", text, now_s);
         }
+        match arm {
+            Ok(()) => self.works("arm", now_s),
+            Err(e) => self.fail("arm", e, now_s),
+        }
+        let refused = self.hand_endpoint.refusals();
         let hand = match self.hand_endpoint.take_command() {
             Some(c) => self.hand.write(now_s, &c),
             None => self.hand.idle(now_s),
         };
-        if let Err(e) = hand {
-            self.fail("hand", e);
+        if self.hand_endpoint.refusals() > refused {
+            let text = self.hand_endpoint.last_error().to_owned();
+            self.errors.event("hand command", text, now_s);
+        }
+        match hand {
+            Ok(()) => self.works("hand", now_s),
+            Err(e) => self.fail("hand", e, now_s),
         }
         // Catch up with the clock (at most 0.1 s per tick after a stall).
         let start = *self.start_s.get_or_insert(now_s);
         let Ok(mut world) = self.world.lock() else {
-            self.fail("world", "lock poisoned");
+            self.serving = false;
+            self.fail("world", "lock poisoned", now_s);
             return;
         };
         let lag = (now_s - start) - (world.time_s() - self.sim_start_s);
@@ -395,10 +418,13 @@ impl Node for SimNode {
         if let Some(msg) = objects
             && let Err(e) = self.objects_pub.put(&msg)
         {
-            self.fail("object poses", e);
+            self.errors
+                .event("object poses", format!("object poses: {e}"), now_s);
         }
-        if let Err(e) = stepped {
-            self.fail("world", e);
+        let mut serving = stepped.is_ok();
+        match stepped {
+            Ok(()) => self.works("world", now_s),
+            Err(e) => self.fail("world", e, now_s),
         }
         match judged {
             Some((false, Ok(verdict))) if verdict.is_final() => {
@@ -406,23 +432,38 @@ impl Node for SimNode {
             }
             Some((_, Err(e))) => {
                 self.job_errors += 1;
-                self.last_error = format!("job judge: {e}");
+                self.errors
+                    .event("job judge", format!("job judge: {e}"), now_s);
             }
             _ => {}
         }
-        if let Err(e) = self.arm_endpoint.publish_state(&arm_state) {
-            self.fail("arm state", e);
+        match self.arm_endpoint.publish_state(&arm_state) {
+            Ok(()) => self.works("arm state", now_s),
+            Err(e) => {
+                serving = false;
+                self.fail("arm state", e, now_s);
+            }
         }
-        if let Err(e) = self.hand_endpoint.publish_state(&hand_state) {
-            self.fail("hand state", e);
+        match self.hand_endpoint.publish_state(&hand_state) {
+            Ok(()) => self.works("hand state", now_s),
+            Err(e) => {
+                serving = false;
+                self.fail("hand state", e, now_s);
+            }
         }
-        if let Some(Err(e)) = camera {
-            self.fail("cameras", e);
+        match camera {
+            Some(Ok(_)) => self.works("cameras", now_s),
+            Some(Err(e)) => self.fail("cameras", e, now_s),
+            None => {}
         }
+        self.serving = serving;
     }
 
+    /// Inactive until the world first steps and both robots' states go out; Active
+    /// while they do; Fault while the world cannot step or a robot's state cannot be
+    /// published (the controllers then see no hardware).
     fn state(&self) -> Lifecycle {
-        Lifecycle::Active
+        crate::serving_state(self.serving, self.start_s.is_some())
     }
 
     fn counters(&self) -> Vec<(String, u64)> {
@@ -455,18 +496,7 @@ impl Node for SimNode {
     }
 
     fn last_error(&self) -> String {
-        if !self.last_error.is_empty() {
-            return self.last_error.clone();
-        }
-        for e in [
-            self.arm_endpoint.last_error(),
-            self.hand_endpoint.last_error(),
-        ] {
-            if !e.is_empty() {
-                return e.to_owned();
-            }
-        }
-        String::new()
+        self.errors.text()
     }
 
     /// The robots stop: the arm brakes (zero velocity), the hand holds its posture.
