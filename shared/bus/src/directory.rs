@@ -89,6 +89,17 @@ impl PublisherDirectory {
         self.by_gid.lock().ok()?.get(gid).cloned()
     }
 
+    /// The live publishers of `topic` (with its leading `/`), ordered by node name.
+    pub fn publishers_of(&self, topic: &str) -> Vec<PublisherInfo> {
+        let mut out: Vec<PublisherInfo> = self
+            .by_gid
+            .lock()
+            .map(|m| m.values().filter(|p| p.topic == topic).cloned().collect())
+            .unwrap_or_default();
+        out.sort_by(|a, b| (&a.node_name, &a.zid).cmp(&(&b.node_name, &b.zid)));
+        out
+    }
+
     /// Number of live publishers known.
     pub fn len(&self) -> usize {
         self.by_gid.lock().map(|m| m.len()).unwrap_or(0)

@@ -1041,6 +1041,15 @@ impl<T: Message> Subscriber<T> {
         self.shared.directory.lookup(gid)
     }
 
+    /// The publishers of this topic that announce themselves now (live liveliness
+    /// tokens), whether or not their samples reach this subscriber: one that is
+    /// announced but never heard from is being dropped on the way (an access rule, a
+    /// link that does not carry the topic).
+    pub fn announced_publishers(&self) -> Vec<PublisherInfo> {
+        let topic = format!("/{}", self.shared.spec.name.trim_start_matches('/'));
+        self.shared.directory.publishers_of(&topic)
+    }
+
     /// Named counters for node status reports.
     pub fn named_counters(&self) -> Vec<(String, u64)> {
         let prefix = self.shared.spec.name.rsplit('/').next().unwrap_or_default();

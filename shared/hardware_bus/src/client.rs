@@ -12,20 +12,63 @@ use teleop_msgs::{
     FingertipPressures, Image, JointCommand, JointState, OperatorInput, PoseStamped, Time,
 };
 
-/// The newest valid state of a subscription, with its receive time.
+/// The newest valid state of a subscription, with its receive time; `missing` says why
+/// there is none yet.
 fn freshest<S: Copy>(
     latest: Option<(S, f64)>,
     now_s: f64,
     stale_after_s: f64,
-    what: &str,
+    missing: impl FnOnce() -> HardwareError,
 ) -> Result<S, HardwareError> {
-    let (state, at) = latest
-        .ok_or_else(|| HardwareError::NotConnected(format!("no {what} state received yet")))?;
+    let (state, at) = latest.ok_or_else(missing)?;
     let age_s = now_s - at;
     if age_s > stale_after_s {
         return Err(HardwareError::StaleState { age_s });
     }
     Ok(state)
+}
+
+/// Why no state of `what` has arrived on `state`: nothing published yet, or (named in
+/// the error, and once in the log) a publisher that announces the topic but whose
+/// samples never arrive, which for a hardware topic is most often the hardware access
+/// rule: hardware topics travel only on the node's `hardware_interfaces`.
+#[derive(Debug)]
+struct NoStateYet {
+    what: &'static str,
+    hardware_interfaces: Vec<String>,
+    warned: bool,
+}
+
+impl NoStateYet {
+    fn new(bus: &Bus, what: &'static str) -> Self {
+        Self {
+            what,
+            hardware_interfaces: bus.config().zenoh.hardware_interfaces.clone(),
+            warned: false,
+        }
+    }
+
+    fn error<T: teleop_msgs::Message>(&mut self, state: &Subscriber<T>) -> HardwareError {
+        let what = self.what;
+        let announced = state.announced_publishers();
+        if announced.is_empty() {
+            return HardwareError::NotConnected(format!("no {what} state received yet"));
+        }
+        let names: Vec<String> = announced.iter().map(|p| p.label()).collect();
+        let text = format!(
+            "no {what} state received yet, though {} publishes /{}: its samples do not \
+             arrive here. Hardware topics travel only on this node's hardware_interfaces \
+             ({}); is the link to it on another interface (see --hardware-interface)?",
+            names.join(", "),
+            state.spec().name,
+            self.hardware_interfaces.join(", ")
+        );
+        if !self.warned {
+            self.warned = true;
+            tracing::warn!("{text}");
+        }
+        HardwareError::NotConnected(text)
+    }
 }
 
 /// An arm of `N` joints reached over the bus.
@@ -38,6 +81,7 @@ pub struct BusArm<const N: usize> {
     latest: Option<(ArmState<N>, f64)>,
     stale_after_s: f64,
     bad_states: u64,
+    no_state: NoStateYet,
 }
 
 impl<const N: usize> BusArm<N> {
@@ -71,6 +115,7 @@ impl<const N: usize> BusArm<N> {
             latest: None,
             stale_after_s,
             bad_states: 0,
+            no_state: NoStateYet::new(bus, interface.name),
         })
     }
 
@@ -96,7 +141,10 @@ impl<const N: usize> ArmHardware<N> for BusArm<N> {
                 }
             }
         }
-        freshest(self.latest, now_s, self.stale_after_s, self.interface.name)
+        let (no_state, state) = (&mut self.no_state, &self.state);
+        freshest(self.latest, now_s, self.stale_after_s, || {
+            no_state.error(state)
+        })
     }
 
     fn write(&mut self, now_s: f64, command: &ArmCommand<N>) -> Result<(), HardwareError> {
@@ -125,6 +173,7 @@ pub struct BusHand {
     latest_tactile: Option<FingertipPressures>,
     stale_after_s: f64,
     bad_states: u64,
+    no_state: NoStateYet,
 }
 
 impl BusHand {
@@ -159,6 +208,7 @@ impl BusHand {
             latest_tactile: None,
             stale_after_s,
             bad_states: 0,
+            no_state: NoStateYet::new(bus, "hand"),
         })
     }
 
@@ -182,7 +232,10 @@ impl HandHardware for BusHand {
                 }
             }
         }
-        freshest(self.latest, now_s, self.stale_after_s, "hand")
+        let (no_state, state) = (&mut self.no_state, &self.state);
+        freshest(self.latest, now_s, self.stale_after_s, || {
+            no_state.error(state)
+        })
     }
 
     fn write(&mut self, now_s: f64, command: &HandCommand) -> Result<(), HardwareError> {
@@ -501,6 +554,8 @@ impl OperatorPanel for BusPanel {
                 tracing::warn!("pedal state refused: non-finite motion scale");
             }
         }
-        freshest(self.latest, now_s, self.stale_after_s, "pedal")
+        freshest(self.latest, now_s, self.stale_after_s, || {
+            HardwareError::NotConnected("no pedal state received yet".into())
+        })
     }
 }

@@ -105,3 +105,41 @@ async fn a_camera_checks_its_images_kind() {
     assert!(e.to_string().contains("rgb8"), "{e}");
     assert_eq!(depth.bad_images(), 1);
 }
+
+/// An arm whose state is published but dropped on the way by the hardware access rule
+/// (the controller allows hardware topics on another interface than the link's): the
+/// error names the publisher, the topic and the rule, not just "no state yet".
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_state_dropped_by_the_hardware_rule_is_named() {
+    let (a, mut b) = configs(33);
+    b.zenoh.hardware_interfaces = vec!["site_lan0".into()];
+    let driver = Bus::open("remote_sim", &a).await.unwrap();
+    let endpoint = ArmEndpoint::new(&driver, &UR5_ARM, UR5_ARM.controller_node)
+        .await
+        .unwrap();
+    let controller = Bus::open(UR5_ARM.controller_node, &b).await.unwrap();
+    let mut arm = BusArm::new(&controller, &UR5_ARM, 0.5).await.unwrap();
+    let state = ArmState {
+        time_s: 1.0,
+        position_rad: SVector::<f64, 6>::zeros(),
+        velocity_rad_s: SVector::zeros(),
+    };
+    let mut last = String::new();
+    for _ in 0..150 {
+        endpoint.publish_state(&state).unwrap();
+        tokio::time::sleep(Duration::from_millis(20)).await;
+        match arm.read(controller.now_s()) {
+            Ok(_) => panic!("a hardware state crossed loopback against the rule"),
+            Err(e) => last = e.to_string(),
+        }
+        if last.contains("though") {
+            break;
+        }
+    }
+    assert!(
+        last.contains("though remote_sim@")
+            && last.contains("publishes /teleop/hw/ur5/state")
+            && last.contains("hardware_interfaces (site_lan0)"),
+        "{last}"
+    );
+}
