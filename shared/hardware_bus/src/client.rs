@@ -28,14 +28,22 @@ fn freshest<S: Copy>(
     Ok(state)
 }
 
+/// How long a publisher must have announced a hardware state without one sample
+/// arriving before the error says its samples are being dropped (a driver declares its
+/// publisher a moment before it first publishes), s.
+pub const SILENT_PUBLISHER_AFTER_S: f64 = 2.0;
+
 /// Why no state of `what` has arrived on `state`: nothing published yet, or (named in
-/// the error, and once in the log) a publisher that announces the topic but whose
-/// samples never arrive, which for a hardware topic is most often the hardware access
-/// rule: hardware topics travel only on the node's `hardware_interfaces`.
+/// the error, and once in the log) a publisher that has announced the topic for
+/// [`SILENT_PUBLISHER_AFTER_S`] but whose samples never arrive, which for a hardware
+/// topic is most often the hardware access rule: hardware topics travel only on the
+/// node's `hardware_interfaces`.
 #[derive(Debug)]
 struct NoStateYet {
     what: &'static str,
     hardware_interfaces: Vec<String>,
+    /// When a publisher was first seen announced with no state received.
+    announced_since_s: Option<f64>,
     warned: bool,
 }
 
@@ -44,15 +52,27 @@ impl NoStateYet {
         Self {
             what,
             hardware_interfaces: bus.config().zenoh.hardware_interfaces.clone(),
+            announced_since_s: None,
             warned: false,
         }
     }
 
-    fn error<T: teleop_msgs::Message>(&mut self, state: &Subscriber<T>) -> HardwareError {
+    fn error<T: teleop_msgs::Message>(
+        &mut self,
+        now_s: f64,
+        state: &Subscriber<T>,
+    ) -> HardwareError {
         let what = self.what;
         let announced = state.announced_publishers();
+        let plain = || HardwareError::NotConnected(format!("no {what} state received yet"));
         if announced.is_empty() {
-            return HardwareError::NotConnected(format!("no {what} state received yet"));
+            self.announced_since_s = None;
+            return plain();
+        }
+        let since = *self.announced_since_s.get_or_insert(now_s);
+        let waited_s = now_s - since;
+        if waited_s.is_nan() || waited_s < SILENT_PUBLISHER_AFTER_S {
+            return plain();
         }
         let names: Vec<String> = announced.iter().map(|p| p.label()).collect();
         let text = format!(
@@ -143,7 +163,7 @@ impl<const N: usize> ArmHardware<N> for BusArm<N> {
         }
         let (no_state, state) = (&mut self.no_state, &self.state);
         freshest(self.latest, now_s, self.stale_after_s, || {
-            no_state.error(state)
+            no_state.error(now_s, state)
         })
     }
 
@@ -234,7 +254,7 @@ impl HandHardware for BusHand {
         }
         let (no_state, state) = (&mut self.no_state, &self.state);
         freshest(self.latest, now_s, self.stale_after_s, || {
-            no_state.error(state)
+            no_state.error(now_s, state)
         })
     }
 

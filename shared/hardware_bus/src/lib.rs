@@ -17,6 +17,6 @@ mod endpoint;
 
 pub use client::{
     BusArm, BusCamera, BusHand, BusPanel, BusWristTracker, MARKER_QUATERNION_TOLERANCE,
-    MarkerSample,
+    MarkerSample, SILENT_PUBLISHER_AFTER_S,
 };
 pub use endpoint::{ArmEndpoint, HandEndpoint};

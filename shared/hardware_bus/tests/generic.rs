@@ -119,13 +119,15 @@ async fn a_state_dropped_by_the_hardware_rule_is_named() {
         .unwrap();
     let controller = Bus::open(UR5_ARM.controller_node, &b).await.unwrap();
     let mut arm = BusArm::new(&controller, &UR5_ARM, 0.5).await.unwrap();
+    let started_s = controller.now_s();
     let state = ArmState {
         time_s: 1.0,
         position_rad: SVector::<f64, 6>::zeros(),
         velocity_rad_s: SVector::zeros(),
     };
     let mut last = String::new();
-    for _ in 0..150 {
+    // Announced for `SILENT_PUBLISHER_AFTER_S` (2 s) before the error names it.
+    for _ in 0..400 {
         endpoint.publish_state(&state).unwrap();
         tokio::time::sleep(Duration::from_millis(20)).await;
         match arm.read(controller.now_s()) {
@@ -136,6 +138,11 @@ async fn a_state_dropped_by_the_hardware_rule_is_named() {
             break;
         }
     }
+    let named_after = controller.now_s() - started_s;
+    assert!(
+        named_after >= teleop_hardware_bus::SILENT_PUBLISHER_AFTER_S - 0.1,
+        "named {named_after:.2} s after the start: {last}"
+    );
     assert!(
         last.contains("though remote_sim@")
             && last.contains("publishes /teleop/hw/ur5/state")
