@@ -328,6 +328,35 @@ fn outcome<T, E>(r: Result<T, E>) -> Outcome {
     }
 }
 
+impl Target {
+    /// A target whose seeds are the first `n` inputs of its own generator, drawn from
+    /// the stream seeded `seed`; the generator also makes fresh inputs during the run.
+    fn generated(
+        name: &'static str,
+        text: bool,
+        (seed, n): (u64, usize),
+        generate: impl Fn(&mut Rng) -> Vec<u8> + Send + Sync + 'static,
+        decode: Decoder,
+    ) -> Self {
+        let mut rng = Rng::new(seed);
+        Self {
+            name,
+            seeds: (0..n).map(|_| generate(&mut rng)).collect(),
+            text,
+            generate: Some(Box::new(generate)),
+            decode,
+        }
+    }
+}
+
+/// A decoder of UTF-8 text: bytes that are not UTF-8 are refused, the text goes to `f`.
+fn text_decoder(f: impl Fn(&str) -> Outcome + Send + Sync + 'static) -> Decoder {
+    Box::new(move |b| match std::str::from_utf8(b) {
+        Ok(text) => f(text),
+        Err(_) => Outcome::Refused,
+    })
+}
+
 fn enc<T: Message>(msg: &T) -> Vec<u8> {
     teleop_msgs::encode(msg).unwrap_or_default()
 }
@@ -409,18 +438,16 @@ fn cdr<T: Message>(
     generate: fn(&mut Rng) -> T,
     consume: fn(&T) -> Outcome,
 ) -> Target {
-    let mut rng = Rng::new(7);
-    let seeds = (0..32).map(|_| enc(&generate(&mut rng))).collect();
-    Target {
+    Target::generated(
         name,
-        seeds,
-        text: false,
-        generate: Some(Box::new(move |rng| enc(&generate(rng)))),
-        decode: Box::new(move |bytes| match teleop_msgs::decode::<T>(bytes) {
+        false,
+        (7, 32),
+        move |rng| enc(&generate(rng)),
+        Box::new(move |bytes| match teleop_msgs::decode::<T>(bytes) {
             Ok(msg) => consume(&msg),
             Err(_) => Outcome::Refused,
         }),
-    }
+    )
 }
 
 fn joint_state(rng: &mut Rng) -> JointState {
@@ -615,14 +642,13 @@ fn attachment_target() -> Target {
         .to_bytes()
         .to_vec()
     }
-    let mut rng = Rng::new(11);
-    Target {
-        name: "rmw_zenoh attachment",
-        seeds: (0..16).map(|_| generate(&mut rng)).collect(),
-        text: false,
-        generate: Some(Box::new(generate)),
-        decode: Box::new(|b| outcome(teleop_bus::Attachment::from_bytes(b))),
-    }
+    Target::generated(
+        "rmw_zenoh attachment",
+        false,
+        (11, 16),
+        generate,
+        Box::new(|b| outcome(teleop_bus::Attachment::from_bytes(b))),
+    )
 }
 
 fn liveliness_target() -> Target {
@@ -734,41 +760,30 @@ fn bvh_targets(repo: &Path) -> anyhow::Result<Vec<Target>> {
     let (skeleton, _) = Skeleton::parse(&fixture)?;
     let channels = skeleton.channel_count();
     let hand = skeleton.joint("RightHand")?;
-    let skeleton = Arc::new(skeleton);
     let frame = move |rng: &mut Rng| {
         let values: Vec<String> = (0..channels)
             .map(|_| format!("{:.3}", 180.0 * (2.0 * rng.uniform() - 1.0)))
             .collect();
         format!("0 Avatar00 {}", values.join(" ")).into_bytes()
     };
-    let mut rng = Rng::new(17);
-    let frames: Vec<Vec<u8>> = (0..16).map(|_| frame(&mut rng)).collect();
-    let s = Arc::clone(&skeleton);
-    let stream = Target {
-        name: "BVH stream frame + pose",
-        seeds: frames,
-        text: true,
-        generate: Some(Box::new(frame)),
-        decode: Box::new(move |b| {
-            let Ok(text) = std::str::from_utf8(b) else {
-                return Outcome::Refused;
-            };
+    let stream = Target::generated(
+        "BVH stream frame + pose",
+        true,
+        (17, 16),
+        frame,
+        text_decoder(move |text| {
             outcome(
-                parse_stream_frame(text).and_then(|f| s.relative_pose(&f.values, 0, hand, 0.01)),
+                parse_stream_frame(text)
+                    .and_then(|f| skeleton.relative_pose(&f.values, 0, hand, 0.01)),
             )
         }),
-    };
+    );
     let file = Target {
         name: "BVH skeleton file",
         seeds: vec![fixture.into_bytes()],
         text: true,
         generate: None,
-        decode: Box::new(|b| {
-            let Ok(text) = std::str::from_utf8(b) else {
-                return Outcome::Refused;
-            };
-            outcome(Skeleton::parse(text))
-        }),
+        decode: text_decoder(|text| outcome(Skeleton::parse(text))),
     };
     Ok(vec![stream, file])
 }
@@ -794,22 +809,18 @@ fn replay_target() -> Target {
         }
         out.into_bytes()
     }
-    let mut rng = Rng::new(19);
-    Target {
-        name: "CSV pose replay",
-        seeds: (0..16).map(|_| generate(&mut rng)).collect(),
-        text: true,
-        generate: Some(Box::new(generate)),
-        decode: Box::new(|b| {
-            let Ok(text) = std::str::from_utf8(b) else {
-                return Outcome::Refused;
-            };
+    Target::generated(
+        "CSV pose replay",
+        true,
+        (19, 16),
+        generate,
+        text_decoder(|text| {
             outcome(teleop_local_site::tracking::replay::PoseTrajectory::parse(
                 text,
                 Path::new("hostile.csv"),
             ))
         }),
-    }
+    )
 }
 
 /// Parses `text` as node config `C` and validates it, as a node loads its file.

@@ -185,42 +185,36 @@ async fn relay(
     upstream: std::net::SocketAddr,
     counts: &FrontCounts,
 ) -> anyhow::Result<()> {
-    let head = tokio::time::timeout(HEAD_TIMEOUT, read_head(&mut client)).await;
-    let (head, rest) = match head {
-        Ok(Ok(h)) => h,
-        Ok(Err(e)) => {
-            refuse(&mut client).await;
-            return Err(e.into());
-        }
-        Err(_) => {
-            refuse(&mut client).await;
-            anyhow::bail!("no handshake within {HEAD_TIMEOUT:?}");
-        }
+    // The client's head, checked and perhaps renamed; anything wrong with it is
+    // answered 400.
+    let checked = match tokio::time::timeout(HEAD_TIMEOUT, read_head(&mut client)).await {
+        Ok(Ok((head, rest))) => rewrite_request(&head)
+            .map(|(head, renamed)| (head, renamed, rest))
+            .map_err(anyhow::Error::from),
+        Ok(Err(e)) => Err(e.into()),
+        Err(_) => Err(anyhow::anyhow!("no handshake within {HEAD_TIMEOUT:?}")),
     };
-    let (head, renamed) = match rewrite_request(&head) {
-        Ok(r) => r,
+    let (head, renamed, rest) = match checked {
+        Ok(c) => c,
         Err(e) => {
             refuse(&mut client).await;
-            return Err(e.into());
+            return Err(e);
         }
     };
     let mut server = TcpStream::connect(upstream).await?;
     server.write_all(head.as_bytes()).await?;
     server.write_all(b"\r\n\r\n").await?;
     server.write_all(&rest).await?;
-    let counter = if renamed {
-        &counts.renamed
-    } else {
-        &counts.passed
-    };
-    counter.fetch_add(1, Ordering::Relaxed);
     if renamed {
+        counts.renamed.fetch_add(1, Ordering::Relaxed);
         let (answer, rest) = read_head(&mut server).await?;
         client
             .write_all(rewrite_response(&answer).as_bytes())
             .await?;
         client.write_all(b"\r\n\r\n").await?;
         client.write_all(&rest).await?;
+    } else {
+        counts.passed.fetch_add(1, Ordering::Relaxed);
     }
     // Both directions until either side closes; an error here is a closed connection.
     let _ = tokio::io::copy_bidirectional(&mut client, &mut server).await;

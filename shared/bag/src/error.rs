@@ -34,6 +34,11 @@ impl BagError {
         move |source| BagError::Io { path, source }
     }
 
+    pub(crate) fn read(path: impl Into<PathBuf>) -> impl FnOnce(crate::ReadError) -> Self {
+        let path = path.into();
+        move |e| BagError::Mcap { path, message: e.0 }
+    }
+
     pub(crate) fn mcap(path: impl Into<PathBuf>) -> impl FnOnce(mcap::McapError) -> Self {
         let path = path.into();
         move |e| BagError::Mcap {

@@ -203,14 +203,8 @@ pub fn read_file(path: &Path) -> Result<FileReport, BagError> {
 /// # Errors
 /// [`BagError::Mcap`] if they are not MCAP at all (no magic, no header).
 pub fn read_bytes(path: &Path, buf: &[u8]) -> Result<FileReport, BagError> {
-    let stream = crate::messages(buf).map_err(|e| BagError::Mcap {
-        path: path.to_owned(),
-        message: e.0,
-    })?;
-    let profile = crate::read::header_profile(buf).map_err(|e| BagError::Mcap {
-        path: path.to_owned(),
-        message: e.0,
-    })?;
+    let stream = crate::messages(buf).map_err(BagError::read(path))?;
+    let profile = crate::read::header_profile(buf).map_err(BagError::read(path))?;
     let mut report = FileReport {
         path: path.to_owned(),
         bytes: buf.len() as u64,
@@ -373,14 +367,8 @@ pub fn recover(dir: &Path) -> Result<BagReport, BagError> {
 /// replaces it.
 fn rewrite_whole(path: &Path) -> Result<(), BagError> {
     let buf = std::fs::read(path).map_err(BagError::io(path))?;
-    let stream = crate::messages(&buf).map_err(|e| BagError::Mcap {
-        path: path.to_owned(),
-        message: e.0,
-    })?;
-    let profile = crate::read::header_profile(&buf).map_err(|e| BagError::Mcap {
-        path: path.to_owned(),
-        message: e.0,
-    })?;
+    let stream = crate::messages(&buf).map_err(BagError::read(path))?;
+    let profile = crate::read::header_profile(&buf).map_err(BagError::read(path))?;
     let tmp = path.with_extension("mcap.recovering");
     let out = File::create(&tmp).map_err(BagError::io(&tmp))?;
     let mut writer = mcap::WriteOptions::new()

@@ -8,24 +8,21 @@ use teleop_hardware::{ArmCommand, ArmState, HandCommand, HandState, wire};
 use teleop_interfaces::{ArmInterface, HandInterface};
 use teleop_msgs::{FingertipPressures, JointCommand, JointState};
 
-/// Commands refused after they passed the source check, by reason, and the last
-/// error text.
+/// Commands refused after they passed the source check, by reason, and the newest
+/// refusal's text not yet taken by the owner.
 #[derive(Debug, Default, Clone, PartialEq, Eq)]
 struct Refusals {
     by_kind: BTreeMap<&'static str, u64>,
-    last_error: String,
+    newest: Option<String>,
 }
 
 impl Refusals {
     fn count(&mut self, what: &str, e: &wire::WireError) {
         *self.by_kind.entry(e.kind()).or_default() += 1;
-        self.last_error = format!("{what} command refused: {e}");
+        let text = format!("{what} command refused: {e}");
         // The owning node's status names it (once, not per refusal, in its log).
-        tracing::debug!("{}", self.last_error);
-    }
-
-    fn total(&self) -> u64 {
-        self.by_kind.values().sum()
+        tracing::debug!("{text}");
+        self.newest = Some(text);
     }
 
     fn named(&self, prefix: &str, out: &mut Vec<(String, u64)>) {
@@ -100,14 +97,9 @@ impl<const N: usize> ArmEndpoint<N> {
         out
     }
 
-    /// The last refusal, if any.
-    pub fn last_error(&self) -> &str {
-        &self.refused.last_error
-    }
-
-    /// How many commands were refused after the source check, all reasons.
-    pub fn refusals(&self) -> u64 {
-        self.refused.total()
+    /// The newest refusal since the last call, if any (for the owner's status).
+    pub fn take_refusal(&mut self) -> Option<String> {
+        self.refused.newest.take()
     }
 
     /// The command subscription (statistics, publishers heard from).
@@ -181,14 +173,9 @@ impl HandEndpoint {
         out
     }
 
-    /// The last refusal, if any.
-    pub fn last_error(&self) -> &str {
-        &self.refused.last_error
-    }
-
-    /// How many commands were refused after the source check, all reasons.
-    pub fn refusals(&self) -> u64 {
-        self.refused.total()
+    /// The newest refusal since the last call, if any (for the owner's status).
+    pub fn take_refusal(&mut self) -> Option<String> {
+        self.refused.newest.take()
     }
 
     /// The command subscription.

@@ -472,13 +472,11 @@ impl Node for LocalSimNode {
         self.errors.step(now_s);
         // The camera arm's command, through the safety layer (a period without one is
         // filtered too: the command timeout).
-        let refused = self.ur5_endpoint.refusals();
         let ur5 = match self.ur5_endpoint.take_command() {
             Some(c) => self.ur5.write(now_s, &c),
             None => self.ur5.idle(now_s),
         };
-        if self.ur5_endpoint.refusals() > refused {
-            let text = self.ur5_endpoint.last_error().to_owned();
+        if let Some(text) = self.ur5_endpoint.take_refusal() {
             self.errors.event("ur5 command", text, now_s);
         }
         if let Err(e) = ur5 {

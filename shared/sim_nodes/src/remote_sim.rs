@@ -350,26 +350,22 @@ impl Node for SimNode {
         self.errors.step(now_s);
         // Commands from the controllers, through the safety layer (a period without a
         // command is filtered too: the command timeout).
-        let refused = self.arm_endpoint.refusals();
         let arm = match self.arm_endpoint.take_command() {
             Some(c) => self.arm.write(now_s, &c),
             None => self.arm.idle(now_s),
         };
-        if self.arm_endpoint.refusals() > refused {
-            let text = self.arm_endpoint.last_error().to_owned();
+        if let Some(text) = self.arm_endpoint.take_refusal() {
             self.errors.event("arm command", text, now_s);
         }
         match arm {
             Ok(()) => self.works("arm", now_s),
             Err(e) => self.fail("arm", e, now_s),
         }
-        let refused = self.hand_endpoint.refusals();
         let hand = match self.hand_endpoint.take_command() {
             Some(c) => self.hand.write(now_s, &c),
             None => self.hand.idle(now_s),
         };
-        if self.hand_endpoint.refusals() > refused {
-            let text = self.hand_endpoint.last_error().to_owned();
+        if let Some(text) = self.hand_endpoint.take_refusal() {
             self.errors.event("hand command", text, now_s);
         }
         match hand {
