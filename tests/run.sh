@@ -35,6 +35,10 @@ apt_install fonts-dejavu-core test -f /usr/share/fonts/truetype/dejavu/DejaVuSan
 apt_install chromium command -v chromium
 # mujoco-rs's build script asks pkg-config for MuJoCo (.cargo/config.toml).
 apt_install pkgconf command -v pkg-config
+# pyzeros (the ros2_control stand-in's ROS 2 client) compiles its serializers with
+# Cython on first use: a C compiler and the Python headers.
+apt_install gcc command -v gcc
+apt_install python3-dev test -f "$(python3 -c 'import sysconfig; print(sysconfig.get_paths()["include"])')/Python.h"
 
 # Python environment for the interop tests, ONNX Runtime and MuJoCo (outside the clone,
 # reused between runs; the hand-inference crate finds libonnxruntime.so there, the

@@ -1,6 +1,6 @@
 //! The QoS a topic's publishers offer, in rosbag2's words (metadata version 9: names,
-//! not enum numbers). Every publisher of the project announces best effort, volatile,
-//! keep-last with its class's depth (`teleop_bus::keys::qos_string`), with no deadline,
+//! not enum numbers). Every publisher of the project announces reliable (Zenoh's reliable
+//! channel, dropped on congestion: rmw_zenoh's RELIABLE + KEEP_LAST), volatile, keep-last with its class's depth (`teleop_bus::keys::qos_string`), with no deadline,
 //! lifespan or liveliness lease (ROS 2's "infinite": 2147483647 s 4294967295 ns).
 
 use serde::Serialize;
@@ -38,7 +38,7 @@ pub fn qos_profile(spec: &TopicSpec) -> QosProfile {
     QosProfile {
         history: "keep_last",
         depth: spec.qos.depth(),
-        reliability: "best_effort",
+        reliability: "reliable",
         durability: "volatile",
         deadline: INFINITE,
         lifespan: INFINITE,

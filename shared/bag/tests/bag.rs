@@ -141,7 +141,7 @@ fn what_goes_in_comes_out_with_rosbag2_metadata() {
         assert_eq!(topic["topic_metadata"]["serialization_format"], "cdr");
         assert_eq!(
             topic["topic_metadata"]["offered_qos_profiles"][0]["reliability"],
-            "best_effort"
+            "reliable"
         );
         assert_eq!(topic["message_count"], 300);
     }

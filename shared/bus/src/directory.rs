@@ -1,11 +1,12 @@
 //! Who publishes what: a live map from publisher GID to the node that announced it.
 //!
-//! Every publisher of this bus carries a GID derived from its liveliness token key (the
-//! first 16 bytes of the key's SHA-256), and the token names the node, its Zenoh session
-//! and the topic. A subscriber that must only take samples from one node (a robot's
-//! hardware accepts commands from its own controller only) looks the sample's GID up
-//! here. Publishers that announce no token (or tokens of another form, e.g. ROS 2
-//! nodes on rmw_zenoh) are unknown and refused by such a subscriber.
+//! Every publisher carries a GID derived from its liveliness token key exactly as
+//! rmw_zenoh derives it (XXH3-128 of the key, [`gid_for_token`]), and the token names the
+//! node, its Zenoh session and the topic. So a publisher of this bus and one of a ROS 2
+//! node on rmw_zenoh are identified alike. A subscriber that must only take samples from
+//! one node (a robot's hardware accepts commands from its own controller only) looks
+//! the sample's GID up here. Publishers that announce no token are unknown and refused
+//! by such a subscriber.
 //!
 //! This binds a sample to the node that *announced* a publisher; it does not
 //! authenticate the sender (a peer that copies a GID off the wire can forge it). Mutual
@@ -15,16 +16,16 @@
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
-use sha2::{Digest, Sha256};
-
 use crate::keys::{self, EntityKind};
 
-/// The GID of the publisher whose liveliness token key is `key`.
+/// The GID of the publisher whose liveliness token key is `key`, as rmw_zenoh computes
+/// it (`liveliness_utils.cpp`, `Entity::Entity`): the 128-bit XXH3 hash of the whole key,
+/// its low 64 bits then its high 64 bits, each in the host's byte order (little-endian
+/// on every platform ROS 2 supports; written little-endian here).
 pub fn gid_for_token(key: &str) -> [u8; 16] {
-    let digest = Sha256::digest(key.as_bytes());
-    let mut gid = [0u8; 16];
-    gid.copy_from_slice(&digest[..16]);
-    gid
+    let hash = xxhash_rust::xxh3::xxh3_128(key.as_bytes());
+    // `u128::to_le_bytes` puts the low 64 bits first, each half little-endian.
+    hash.to_le_bytes()
 }
 
 /// What a publisher's token says about it.
@@ -117,6 +118,21 @@ mod tests {
     use crate::keys::{GraphEntity, liveliness_key, qos_string};
 
     #[test]
+    fn gids_are_computed_as_rmw_zenoh_computes_them() {
+        // Expected value from pyzeros 0.1.0 `rmw_zenoh_gid` (Python `xxhash`), which
+        // mirrors rmw_zenoh's Entity constructor: an implementation nobody here wrote.
+        let key = "@ros2_lv/0/aac3178e146ba6f1fc6e6a4085e77f21/0/7/MP/%/%/wrist_tracker/\
+                   %teleop%wrist_pose/geometry_msgs::msg::dds_::PoseStamped_/\
+                   RIHS01_10f3786d7d40fd2b54367835614bff85d4ad3b5dab62bf8bca0cc232d73b4cd8/\
+                   ::,1:,:,:,,";
+        let hex: String = gid_for_token(key)
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        assert_eq!(hex, "9d914ea70239ce2dd0e4c1a5c94a5c91");
+    }
+
+    #[test]
     fn tokens_map_gids_to_nodes() {
         let e = GraphEntity {
             domain_id: 0,
@@ -130,7 +146,7 @@ mod tests {
             dds_type: Some("sensor_msgs::msg::dds_::JointState_".into()),
             type_hash: Some("RIHS01_a1".into()),
         };
-        let key = liveliness_key(&e, &qos_string(false, 1));
+        let key = liveliness_key(&e, &qos_string(true, 1));
         let d = PublisherDirectory::new();
         d.update(&key, true);
         let info = d.lookup(&gid_for_token(&key)).expect("known");

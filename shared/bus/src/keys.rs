@@ -49,12 +49,28 @@ pub fn demangle(name: &str) -> String {
     }
 }
 
-/// QoS string of a liveliness token (rmw_zenoh's compact form:
-/// `reliability:durability:history,depth:deadline:lifespan:liveliness`).
-/// Best effort = 2, volatile = 2, keep last = 1.
+/// rmw_zenoh's default history depth: a token leaves the depth out when it is this.
+pub const RMW_ZENOH_DEFAULT_DEPTH: usize = 42;
+
+/// QoS field of a liveliness token, written as rmw_zenoh writes it
+/// (`liveliness_utils.cpp`, `qos_to_keyexpr`):
+/// `reliability:durability:history,depth:deadline_s,deadline_ns:lifespan_s,lifespan_ns:
+/// liveliness,lease_s,lease_ns`, where every value equal to rmw_zenoh's default (reliable,
+/// volatile, keep last, depth 42, infinite durations, automatic liveliness) is left
+/// empty. The GID of a publisher hashes the whole token, so one character more or less
+/// here makes a different publisher.
+///
+/// Every publisher and subscriber of this bus is keep-last, volatile, with no deadline,
+/// lifespan or lease; `reliable` is what the Zenoh publisher does (Zenoh's reliable
+/// channel, dropped on congestion: rmw_zenoh's mapping of RELIABLE + KEEP_LAST).
 pub fn qos_string(reliable: bool, depth: usize) -> String {
-    let rel = if reliable { 1 } else { 2 };
-    format!("{rel}:2:1,{depth}:,:,:,,")
+    let reliability = if reliable { "" } else { "2" };
+    let depth = if depth == RMW_ZENOH_DEFAULT_DEPTH {
+        String::new()
+    } else {
+        depth.to_string()
+    };
+    format!("{reliability}::,{depth}:,:,:,,")
 }
 
 /// Kind of entity in a liveliness token.
@@ -179,6 +195,15 @@ mod tests {
     use teleop_msgs::JointState;
 
     #[test]
+    fn qos_is_written_as_rmw_zenoh_writes_it() {
+        // Expected strings from pyzeros 0.1.0 `QosProfile(...).encode()`, which mirrors
+        // rmw_zenoh's qos_to_keyexpr (an implementation nobody here wrote).
+        assert_eq!(qos_string(true, 1), "::,1:,:,:,,");
+        assert_eq!(qos_string(false, 10), "2::,10:,:,:,,");
+        assert_eq!(qos_string(true, RMW_ZENOH_DEFAULT_DEPTH), "::,:,:,:,,");
+    }
+
+    #[test]
     fn data_key_has_rmw_zenoh_shape() {
         assert_eq!(
             data_key::<JointState>(0, "/teleop/shadow/joint_states/"),
@@ -201,11 +226,11 @@ mod tests {
             dds_type: Some("geometry_msgs::msg::dds_::PoseStamped_".into()),
             type_hash: Some("RIHS01_10".into()),
         };
-        let key = liveliness_key(&e, &qos_string(false, 1));
+        let key = liveliness_key(&e, &qos_string(true, 1));
         assert_eq!(
             key,
             "@ros2_lv/3/aac3178e146ba6f1fc6e6a4085e77f21/0/7/MP/%/%/wrist_tracker/\
-             %teleop%wrist_pose/geometry_msgs::msg::dds_::PoseStamped_/RIHS01_10/2:2:1,1:,:,:,,"
+             %teleop%wrist_pose/geometry_msgs::msg::dds_::PoseStamped_/RIHS01_10/::,1:,:,:,,"
         );
         let back = parse_liveliness_key(&key).expect("parses");
         assert_eq!(back, e);

@@ -301,7 +301,7 @@ impl Bus {
             .await
             .map_err(zerr(format!("declare publisher {key}")))?;
         let entity = self.entity(EntityKind::Publisher, spec, dds_type);
-        let token_key = keys::liveliness_key(&entity, &keys::qos_string(false, spec.qos.depth()));
+        let token_key = keys::liveliness_key(&entity, &keys::qos_string(true, spec.qos.depth()));
         let token = self
             .session
             .liveliness()
@@ -457,7 +457,7 @@ impl Bus {
             .liveliness()
             .declare_token(keys::liveliness_key(
                 &entity,
-                &keys::qos_string(false, spec.qos.depth()),
+                &keys::qos_string(true, spec.qos.depth()),
             ))
             .await
             .map_err(zerr(format!("declare subscriber token {key}")))

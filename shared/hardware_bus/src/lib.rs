@@ -11,12 +11,17 @@
 //!   controller node** (bus [`SourcePolicy::Node`](teleop_bus::SourcePolicy)): samples
 //!   of any other publisher are dropped and counted before they are decoded. What they
 //!   hand out must still go through the safety layer (`SafeArm` / `SafeHand`).
+//! * Backends for hardware of other ecosystems: [`ros2_control::Ros2ControlArm`], an arm
+//!   run by ros2_control on ROS 2 (rmw_zenoh), through a forward velocity controller and
+//!   the joint state broadcaster.
 
 mod client;
 mod endpoint;
+pub mod ros2_control;
 
 pub use client::{
     BusArm, BusCamera, BusHand, BusPanel, BusWristTracker, MARKER_QUATERNION_TOLERANCE,
     MarkerSample, SILENT_PUBLISHER_AFTER_S,
 };
 pub use endpoint::{ArmEndpoint, HandEndpoint};
+pub use ros2_control::{Ros2ControlArm, Ros2ControlArmConfig};

@@ -36,7 +36,7 @@ pub trait Message:
 
 /// Every message type of this crate that travels as a topic, by description: for tools
 /// that meet a type by its name (recorders, replay, bridges).
-pub fn topic_types() -> [&'static MsgDescription; 10] {
+pub fn topic_types() -> [&'static MsgDescription; 11] {
     [
         PoseStamped::description(),
         JointState::description(),
@@ -48,6 +48,7 @@ pub fn topic_types() -> [&'static MsgDescription; 10] {
         NodeStatus::description(),
         Header::description(),
         TFMessage::description(),
+        Float64MultiArray::description(),
     ]
 }
 

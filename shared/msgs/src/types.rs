@@ -106,6 +106,69 @@ impl Header {
     }
 }
 
+/// `std_msgs/msg/MultiArrayDimension`.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct MultiArrayDimension {
+    pub label: String,
+    pub size: u32,
+    pub stride: u32,
+}
+message!(
+    MultiArrayDimension,
+    "std_msgs/msg/MultiArrayDimension",
+    "RIHS01_5e773a60a4c7fc8a54985f307c7837aa2994252a126c301957a24e31282c9cbe",
+    [
+        F::new("label", B::String),
+        F::new("size", B::Uint32),
+        F::new("stride", B::Uint32)
+    ]
+);
+
+/// `std_msgs/msg/MultiArrayLayout`.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct MultiArrayLayout {
+    pub dim: Vec<MultiArrayDimension>,
+    pub data_offset: u32,
+}
+message!(
+    MultiArrayLayout,
+    "std_msgs/msg/MultiArrayLayout",
+    "RIHS01_4c66e6f78e740ac103a94cf63259f968e48c617e7699e829b63c21a5cb50dac6",
+    [
+        F::seq("dim", B::Nested(MultiArrayDimension::description)),
+        F::new("data_offset", B::Uint32)
+    ]
+);
+
+/// `std_msgs/msg/Float64MultiArray`: what ros2_control's forward command controllers
+/// take on their `commands` topic (one value per joint of the controller, in its order;
+/// the layout is left empty).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Float64MultiArray {
+    pub layout: MultiArrayLayout,
+    pub data: Vec<f64>,
+}
+message!(
+    Float64MultiArray,
+    "std_msgs/msg/Float64MultiArray",
+    "RIHS01_1025ddc6b9552d191f89ef1a8d2f60f3d373e28b283d8891ddcc974e8c55397f",
+    [
+        F::new("layout", B::Nested(MultiArrayLayout::description)),
+        F::seq("data", B::Float64)
+    ]
+);
+
+impl Float64MultiArray {
+    /// The values with an empty layout (a flat array), as ros2_control's forward
+    /// command controllers take them.
+    pub fn flat(data: Vec<f64>) -> Self {
+        Self {
+            layout: MultiArrayLayout::default(),
+            data,
+        }
+    }
+}
+
 // ---------------------------------------------------------------- geometry_msgs
 
 /// `geometry_msgs/msg/Point` (metres).
@@ -640,6 +703,15 @@ pub fn all_descriptions() -> Vec<(&'static MsgDescription, &'static str)> {
     vec![
         (Time::description(), Time::TYPE_HASH),
         (Header::description(), Header::TYPE_HASH),
+        (
+            MultiArrayDimension::description(),
+            MultiArrayDimension::TYPE_HASH,
+        ),
+        (MultiArrayLayout::description(), MultiArrayLayout::TYPE_HASH),
+        (
+            Float64MultiArray::description(),
+            Float64MultiArray::TYPE_HASH,
+        ),
         (Point::description(), Point::TYPE_HASH),
         (Vector3::description(), Vector3::TYPE_HASH),
         (Quaternion::description(), Quaternion::TYPE_HASH),

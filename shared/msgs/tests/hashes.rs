@@ -2,15 +2,15 @@
 #![allow(clippy::unwrap_used)]
 
 use teleop_msgs::{
-    CompressedImage, FingertipPressures, Header, Image, JointCommand, JointState, Message,
-    NodeStatus, OperatorInput, Point, Pose, PoseStamped, Quaternion, TFMessage, Time, Transform,
-    TransformStamped, Vector3,
+    CompressedImage, FingertipPressures, Float64MultiArray, Header, Image, JointCommand,
+    JointState, Message, MultiArrayDimension, MultiArrayLayout, NodeStatus, OperatorInput, Point,
+    Pose, PoseStamped, Quaternion, TFMessage, Time, Transform, TransformStamped, Vector3,
 };
 
 #[test]
 fn computed_hash_equals_declared_hash_for_every_type() {
     let all = teleop_msgs::all_descriptions();
-    assert_eq!(all.len(), 17);
+    assert_eq!(all.len(), 20);
     let mut mismatches = Vec::new();
     for (desc, declared) in &all {
         let computed = desc.type_hash();
@@ -49,6 +49,9 @@ fn all_descriptions_lists_every_type_once() {
         FingertipPressures::TYPE_NAME,
         NodeStatus::TYPE_NAME,
         JointCommand::TYPE_NAME,
+        MultiArrayDimension::TYPE_NAME,
+        MultiArrayLayout::TYPE_NAME,
+        Float64MultiArray::TYPE_NAME,
     ];
     expected.sort_unstable();
     assert_eq!(names, expected);
@@ -67,6 +70,17 @@ fn assert_hash<T: Message>(published: &str) {
 /// Hashes as published by ROS 2 Kilted (`ros2 interface` / rmw_zenoh keys).
 #[test]
 fn published_kilted_hashes() {
+    // The three std_msgs multi-array types: also what rosbags 0.11.9 computes for
+    // ROS2_JAZZY (`get_typestore(Stores.ROS2_JAZZY).hash_rihs01(...)`).
+    assert_hash::<Float64MultiArray>(
+        "RIHS01_1025ddc6b9552d191f89ef1a8d2f60f3d373e28b283d8891ddcc974e8c55397f",
+    );
+    assert_hash::<MultiArrayLayout>(
+        "RIHS01_4c66e6f78e740ac103a94cf63259f968e48c617e7699e829b63c21a5cb50dac6",
+    );
+    assert_hash::<MultiArrayDimension>(
+        "RIHS01_5e773a60a4c7fc8a54985f307c7837aa2994252a126c301957a24e31282c9cbe",
+    );
     assert_hash::<JointState>(
         "RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e",
     );

@@ -17,8 +17,9 @@ use teleop_bus::{Bus, BusConfig, Publisher};
 use teleop_hardware::safety::{
     ArmSafety, ArmSafetyConfig, HandLimits, HandSafety, HandSafetyConfig,
 };
+use teleop_hardware::{ArmCommand, ArmState, HardwareError};
 use teleop_hardware::{ArmHardware, HandHardware, SafeArm, SafeHand};
-use teleop_hardware_bus::{ArmEndpoint, HandEndpoint};
+use teleop_hardware_bus::{ArmEndpoint, HandEndpoint, Ros2ControlArm, Ros2ControlArmConfig};
 use teleop_interfaces::hardware::{PR2_ARM, SHADOW_HAND};
 use teleop_interfaces::topics;
 use teleop_msgs::{Header, Image, Lifecycle, TFMessage, Transform, TransformStamped};
@@ -87,6 +88,59 @@ impl Default for SimSafetyConfig {
     }
 }
 
+/// What runs the PR2 arm.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ArmBackendKind {
+    /// The simulated world's arm.
+    Sim,
+    /// A robot run by ros2_control on ROS 2 (rmw_zenoh): a forward velocity controller
+    /// and the joint state broadcaster (`teleop_hardware_bus::ros2_control`). The
+    /// world's own arm then stays where it is.
+    Ros2Control,
+}
+
+/// The PR2 arm's backend, behind the same safety layer and endpoint either way.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ArmBackendConfig {
+    pub backend: ArmBackendKind,
+    /// Used when `backend = "ros2_control"`.
+    pub ros2_control: Ros2ControlArmConfig,
+}
+
+impl Default for ArmBackendConfig {
+    fn default() -> Self {
+        Self {
+            backend: ArmBackendKind::Sim,
+            ros2_control: Ros2ControlArmConfig::default(),
+        }
+    }
+}
+
+/// The PR2 arm's backend as the safety layer sees it.
+#[derive(Debug)]
+enum ArmBackend {
+    Sim(SimArm<dyn RobotWorld>),
+    Ros2Control(Box<Ros2ControlArm<7>>),
+}
+
+impl ArmHardware<7> for ArmBackend {
+    fn read(&mut self, now_s: f64) -> Result<ArmState<7>, HardwareError> {
+        match self {
+            ArmBackend::Sim(a) => a.read(now_s),
+            ArmBackend::Ros2Control(a) => a.read(now_s),
+        }
+    }
+
+    fn write(&mut self, now_s: f64, command: &ArmCommand<7>) -> Result<(), HardwareError> {
+        match self {
+            ArmBackend::Sim(a) => a.write(now_s, command),
+            ArmBackend::Ros2Control(a) => a.write(now_s, command),
+        }
+    }
+}
+
 /// Configuration of the `remote_sim` node.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -111,8 +165,11 @@ pub struct SimNodeConfig {
     /// The top and side camera views, rendered from the world and published on
     /// `teleop/hw/camera/{top,side}/image` as a camera driver would.
     pub cameras: CameraViewsConfig,
-    /// The safety layer around the simulated arm and hand.
+    /// The safety layer around the arm and the hand.
     pub safety: SimSafetyConfig,
+    /// What runs the PR2 arm: the simulated world's (default) or a ROS 2 robot's
+    /// ros2_control.
+    pub pr2_arm: ArmBackendConfig,
     /// The process's scheduling (normal, or real-time FIFO at a priority).
     pub scheduling: SchedulingConfig,
     pub bus: BusConfig,
@@ -135,6 +192,7 @@ impl Default for SimNodeConfig {
             mujoco: MujocoWorldConfig::default(),
             cameras: CameraViewsConfig::default(),
             safety: SimSafetyConfig::default(),
+            pr2_arm: ArmBackendConfig::default(),
             scheduling: SchedulingConfig::default(),
             bus: BusConfig::default(),
         }
@@ -179,6 +237,12 @@ impl NodeConfig for SimNodeConfig {
         }
         if self.scene == SceneKind::Pick {
             self.pick.job_config().map_err(|e| e.to_string())?;
+        }
+        if self.pr2_arm.backend == ArmBackendKind::Ros2Control {
+            self.pr2_arm
+                .ros2_control
+                .validate(&PR2_ARM)
+                .map_err(|e| format!("pr2_arm.{e}"))?;
         }
         Ok(())
     }
@@ -250,7 +314,9 @@ pub fn build_world(cfg: &SimNodeConfig) -> anyhow::Result<SimWorld> {
 pub struct SimNode {
     period: Duration,
     world: SimWorld,
-    arm: SafeArm<7, SimArm<dyn RobotWorld>>,
+    arm: SafeArm<7, ArmBackend>,
+    /// Refused ros2_control joint states already reported.
+    arm_bad_states_seen: u64,
     hand: SafeHand<SimHand<dyn RobotWorld>>,
     arm_endpoint: ArmEndpoint<7>,
     hand_endpoint: HandEndpoint,
@@ -291,7 +357,13 @@ impl SimNode {
             (cameras, w.time_s())
         };
         let cameras = CameraViews::open(bus, scene_cameras).await?;
-        let (sim_arm, sim_hand) = (SimArm::new(world.clone()), SimHand::new(world.clone()));
+        let sim_hand = SimHand::new(world.clone());
+        let arm_backend = match cfg.pr2_arm.backend {
+            ArmBackendKind::Sim => ArmBackend::Sim(SimArm::new(world.clone())),
+            ArmBackendKind::Ros2Control => ArmBackend::Ros2Control(Box::new(
+                Ros2ControlArm::new(bus, &PR2_ARM, &cfg.pr2_arm.ros2_control).await?,
+            )),
+        };
         let arm_safety = ArmSafety::new(
             teleop_kinematics::robots::pr2_arm_chain()?,
             cfg.safety.arm.clone(),
@@ -306,7 +378,8 @@ impl SimNode {
         Ok(Self {
             period: Duration::from_secs_f64(1.0 / cfg.state_rate_hz),
             world,
-            arm: SafeArm::new(sim_arm, arm_safety),
+            arm: SafeArm::new(arm_backend, arm_safety),
+            arm_bad_states_seen: 0,
             hand: SafeHand::new(sim_hand, hand_safety),
             arm_endpoint: ArmEndpoint::new(bus, &PR2_ARM, &cfg.safety.arm_controller_node).await?,
             hand_endpoint: HandEndpoint::new(bus, &SHADOW_HAND, &cfg.safety.hand_controller_node)
@@ -433,7 +506,23 @@ impl Node for SimNode {
             }
             _ => {}
         }
-        match self.arm_endpoint.publish_state(&arm_state) {
+        // A robot of its own (ros2_control): its measured state, not the world's arm.
+        let arm_state = match self.arm.backend() {
+            ArmBackend::Sim(_) => Ok(arm_state),
+            ArmBackend::Ros2Control(_) => self.arm.read(now_s),
+        };
+        if let ArmBackend::Ros2Control(r) = self.arm.backend()
+            && r.bad_states() > self.arm_bad_states_seen
+        {
+            self.arm_bad_states_seen = r.bad_states();
+            let text = r.newest_refusal().unwrap_or_default().to_owned();
+            self.errors.event("arm joint state", text, now_s);
+        }
+        match arm_state.and_then(|s| {
+            self.arm_endpoint
+                .publish_state(&s)
+                .map_err(|e| HardwareError::Fault(e.to_string()))
+        }) {
             Ok(()) => self.works("arm state", now_s),
             Err(e) => {
                 serving = false;
@@ -487,6 +576,9 @@ impl Node for SimNode {
         out.extend(self.arm_endpoint.counters());
         out.extend(self.hand_endpoint.counters());
         out.extend(self.arm.safety().counters().named("safety.arm"));
+        if let ArmBackend::Ros2Control(r) = self.arm.backend() {
+            out.extend(r.counters("pr2_arm.ros2_control"));
+        }
         out.extend(self.hand.safety().counters().named("safety.hand"));
         out
     }

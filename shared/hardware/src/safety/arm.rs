@@ -309,6 +309,12 @@ impl<const N: usize, B: ArmHardware<N>> SafeArm<N, B> {
         &self.safety
     }
 
+    /// The wrapped backend, read-only (its own counters): commands reach it only
+    /// through the filter.
+    pub fn backend(&self) -> &B {
+        &self.backend
+    }
+
     /// A period without a new command: the last one stays in force until the timeout,
     /// then the arm brakes.
     ///

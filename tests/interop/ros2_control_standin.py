@@ -1,0 +1,156 @@
+"""A ros2_control robot stand-in written on pyzeros (an independent ROS 2 client on
+Zenoh, PyPI), for tests/ros2_control.rs.
+
+It behaves as a robot under ros2_control with two controllers:
+  * forward_velocity_controller: takes std_msgs/msg/Float64MultiArray on
+    /forward_velocity_controller/commands, one velocity per joint in its `joints` order,
+    and (as the real controller does) keeps the last command forever;
+  * joint_state_broadcaster: publishes sensor_msgs/msg/JointState on /joint_states at
+    100 Hz, joints in an order of its own, with one extra joint the arm does not have.
+The "hardware" integrates the commanded velocities through a first-order lag (time
+constant --lag-s) and clamps them to its own velocity limit (--max-velocity) and the
+positions to +-3 rad.
+
+With --imposter, a third node called `imposter` also publishes /joint_states (all
+positions 3.0): a receiver that takes the broadcaster's samples only, by publisher GID,
+must drop every one of them.
+
+Every command received is logged to --log as one JSON line {"t": wall s, "data": [...]}
+(flushed at once), so the test can check what reached the robot.
+"""
+
+import argparse
+import asyncio
+import json
+import sys
+import threading
+import time
+
+import numpy as np
+import zenoh
+import pyzeros
+from pyzeros.builtin_msgs import Attachment
+from ros2_pyterfaces.cyclone.std_msgs.msg import Float64MultiArray
+from ros2_pyterfaces.cyclone.sensor_msgs.msg import JointState
+from ros2_pyterfaces.cyclone.std_msgs.msg import Header
+from ros2_pyterfaces.cyclone.builtin_interfaces.msg import Time
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--listen", required=True, help="zenoh endpoint, e.g. tcp/127.0.0.1:7447")
+    ap.add_argument("--domain", type=int, required=True)
+    ap.add_argument("--joints", required=True, help="comma-separated, the controller's order")
+    ap.add_argument("--start", required=True, help="comma-separated start positions, rad")
+    ap.add_argument("--log", required=True)
+    ap.add_argument("--duration-s", type=float, default=60.0)
+    ap.add_argument("--lag-s", type=float, default=0.03)
+    ap.add_argument("--max-velocity", type=float, default=3.0)
+    ap.add_argument("--imposter", action="store_true")
+    args = ap.parse_args()
+    joints = args.joints.split(",")
+    q = [float(v) for v in args.start.split(",")]
+    assert len(q) == len(joints), "one start position per joint"
+
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"peer"')
+    conf.insert_json5("listen/endpoints", json.dumps([args.listen]))
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    session = zenoh.open(conf)
+
+    lock = threading.Lock()
+    command = [0.0] * len(joints)
+    log = open(args.log, "w", encoding="utf-8")
+
+    def on_command(sample: zenoh.Sample) -> None:
+        msg = Float64MultiArray.deserialize(sample.payload.to_bytes())
+        data = [float(v) for v in msg.data]
+        with lock:
+            if len(data) == len(joints):
+                command[:] = data
+            log.write(json.dumps({"t": time.time(), "data": data}) + "\n")
+            log.flush()
+
+    async def run() -> None:
+        controller = pyzeros.Node(
+            name="forward_velocity_controller", session=session, domain_id=args.domain
+        )
+        broadcaster = pyzeros.Node(
+            name="joint_state_broadcaster", session=session, domain_id=args.domain
+        )
+        sub = pyzeros.sub.RawSub(
+            Float64MultiArray,
+            "/forward_velocity_controller/commands",
+            callback=on_command,
+            session=controller,
+        )
+        pub = pyzeros.Pub(JointState, "/joint_states", session=broadcaster)
+        imposter_pub = None
+        if args.imposter:
+            imposter = pyzeros.Node(name="imposter", session=session, domain_id=args.domain)
+            imposter_pub = pyzeros.Pub(JointState, "/joint_states", session=imposter)
+        # The broadcaster's order: reversed, with an extra joint in the middle.
+        order = list(reversed(range(len(joints))))
+        names = [joints[i] for i in order]
+        names.insert(2, "torso_lift_joint")
+        # pyzeros compiles its serializers on first use (tens of seconds on a fresh
+        # machine): do it before saying ready.
+        JointState(name=["a"], position=[0.0], velocity=[0.0], effort=[0.0]).serialize()
+        Attachment(
+            sequence_number=np.int64(0),
+            source_timestamp=np.int64(0),
+            source_gid=np.zeros(16, dtype=np.uint8),
+        ).serialize()
+        Float64MultiArray.deserialize(Float64MultiArray(data=[0.0]).serialize())
+        print("ready", flush=True)
+        v = [0.0] * len(joints)
+        dt = 0.01
+        start = time.monotonic()
+        k = 0
+        while time.monotonic() - start < args.duration_s:
+            with lock:
+                target = list(command)
+            alpha = min(1.0, dt / args.lag_s)
+            for i in range(len(joints)):
+                want = max(-args.max_velocity, min(args.max_velocity, target[i]))
+                v[i] += alpha * (want - v[i])
+                q[i] = max(-3.0, min(3.0, q[i] + v[i] * dt))
+            now = time.time_ns()
+            stamp = Time(sec=now // 1_000_000_000, nanosec=now % 1_000_000_000)
+            pos = [q[i] for i in order]
+            vel = [v[i] for i in order]
+            pos.insert(2, 0.1)
+            vel.insert(2, 0.0)
+            pub.publish(
+                JointState(
+                    header=Header(stamp=stamp, frame_id=""),
+                    name=names,
+                    position=pos,
+                    velocity=vel,
+                    effort=[0.0] * len(names),
+                )
+            )
+            if imposter_pub is not None and k % 10 == 0:
+                imposter_pub.publish(
+                    JointState(
+                        header=Header(stamp=stamp, frame_id=""),
+                        name=names,
+                        position=[3.0] * len(names),
+                        velocity=[0.0] * len(names),
+                        effort=[0.0] * len(names),
+                    )
+                )
+            k += 1
+            await asyncio.sleep(max(0.0, start + k * dt - time.monotonic()))
+        sub.close()
+
+    try:
+        asyncio.run(run())
+    finally:
+        session.close()
+        log.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,346 @@
+//! The robot site drives a robot run by ros2_control, through its standard interfaces
+//! on rmw_zenoh, with an independent ROS 2 implementation standing in for the robot:
+//! `tests/interop/ros2_control_standin.py`, written on pyzeros (PyPI), runs a forward
+//! velocity controller and a joint state broadcaster over an integrating "hardware"
+//! with lag and limits (joints in an order of its own, one extra joint, and an
+//! imposter node publishing joint states too).
+//!
+//! The simulator process (`remote_sim`) with `pr2_arm.backend = "ros2_control"` owns
+//! the arm: its endpoint takes commands from the arm controller only (here the test, on
+//! a bus node called `pr2_arm_controller`), its safety layer filters them, the backend
+//! sends them as `Float64MultiArray` and publishes the robot's joint states on the
+//! hardware topic. Checked: the arm follows; it stops when commands stop (the safety
+//! layer's command timeout) and when the owning process stalls (the backend's own
+//! zero-velocity watchdog, since the controller keeps the last command forever); the
+//! hardware limits hold on what reaches the robot; the imposter's joint states are
+//! dropped by publisher GID (computed as rmw_zenoh computes it), the broadcaster's
+//! taken.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::io::{BufRead, BufReader, Write};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use nalgebra::SVector;
+use teleop_bus::{Bus, BusConfig, Publisher, Subscriber, ZenohSettings};
+use teleop_hardware::safety::ArmSafety;
+use teleop_hardware::{ArmCommand, ArmState, wire};
+use teleop_interfaces::joints::PR2_ARM_JOINTS;
+use teleop_interfaces::topics;
+use teleop_msgs::{JointState, Lifecycle, Message};
+use teleop_node::Node;
+use teleop_sim::WORKING_POSTURE_RAD;
+use teleop_sim_nodes::remote_sim::{ArmBackendKind, Engine, SceneKind, SimNode, SimNodeConfig};
+use teleop_system_tests::{free_port, repo_root};
+
+const INSTALL_HINT: &str = "install the interop packages with `pip install -r \
+     tests/interop/requirements.txt`, or point TELEOP_PYTHON at a Python that has them";
+
+/// The stand-in robot, killed when dropped.
+struct StandIn(Child);
+
+impl Drop for StandIn {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn bus_config(domain_id: u32, connect: &str) -> BusConfig {
+    BusConfig {
+        domain_id,
+        zenoh: ZenohSettings {
+            listen: vec!["tcp/127.0.0.1:0".into()],
+            connect: vec![connect.to_owned()],
+            multicast_scouting: false,
+            ..Default::default()
+        },
+        ..Default::default()
+    }
+}
+
+/// One command the stand-in received: wall time, velocities in the controller's order.
+#[derive(Debug, serde::Deserialize)]
+struct Received {
+    t: f64,
+    data: Vec<f64>,
+}
+
+/// What the test holds of the robot site besides the simulator node.
+struct Rig<'a> {
+    sim_bus: &'a Bus,
+    /// As the arm controller (`pr2_arm_controller`) would send them.
+    command_pub: &'a Publisher<JointState>,
+    state_sub: &'a Subscriber<JointState>,
+}
+
+impl Rig<'_> {
+    /// Runs the simulator node for `secs` at 100 Hz, sending `command` every period
+    /// when given; keeps the newest arm state seen on the hardware topic.
+    async fn run(
+        &self,
+        sim: &mut SimNode,
+        secs: f64,
+        command: Option<SVector<f64, 7>>,
+        newest: &mut Option<ArmState<7>>,
+    ) {
+        let t0 = Instant::now();
+        while t0.elapsed().as_secs_f64() < secs {
+            let now = self.sim_bus.now_s();
+            if let Some(v) = command {
+                let msg =
+                    wire::arm_command_msg(&PR2_ARM_JOINTS, &ArmCommand { velocity_rad_s: v }, now);
+                self.command_pub.put(&msg).unwrap();
+            }
+            sim.tick(now);
+            while let Some(r) = self.state_sub.try_recv() {
+                *newest = Some(wire::arm_state(&PR2_ARM_JOINTS, &r.msg).unwrap());
+            }
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+    }
+}
+
+fn wall_s() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_robot_site_drives_a_ros2_control_arm_within_its_limits() {
+    let python = std::env::var("TELEOP_PYTHON").unwrap_or_else(|_| "python3".into());
+    // pyzeros compiles its serializers once into this cache (outside the clone, reused
+    // between runs; by default it would land in the working directory).
+    let cydr_cache = std::env::var_os("CYDR_CACHE_DIR").map_or_else(
+        || {
+            std::path::PathBuf::from(std::env::var_os("HOME").unwrap_or_default())
+                .join(".cache/teleop-cydr")
+        },
+        std::path::PathBuf::from,
+    );
+    let probe = Command::new(&python)
+        .env("CYDR_CACHE_DIR", &cydr_cache)
+        .args(["-c", "import pyzeros, ros2_pyterfaces"])
+        .output();
+    match probe {
+        Ok(out) if out.status.success() => {}
+        Ok(out) => panic!(
+            "`{python}` cannot import pyzeros:\n{}\n=> {INSTALL_HINT}",
+            String::from_utf8_lossy(&out.stderr)
+        ),
+        Err(e) => panic!("cannot run `{python}` ({e}) => {INSTALL_HINT}"),
+    }
+    let domain = 83;
+    let port = free_port().unwrap();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let dir = std::env::temp_dir().join(format!("teleop-ros2-control-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let log = dir.join("commands.jsonl");
+    // The controller's joints in an order of its own: the arm's, reversed.
+    let controller_joints: Vec<String> = PR2_ARM_JOINTS
+        .iter()
+        .rev()
+        .map(|s| (*s).to_owned())
+        .collect();
+    let start: Vec<String> = WORKING_POSTURE_RAD
+        .iter()
+        .rev()
+        .map(|v| format!("{v}"))
+        .collect();
+    let mut child = Command::new(&python)
+        .env("CYDR_CACHE_DIR", &cydr_cache)
+        .arg(repo_root().join("tests/interop/ros2_control_standin.py"))
+        .args(["--listen", &endpoint, "--domain", &domain.to_string()])
+        .args([
+            "--joints",
+            &controller_joints.join(","),
+            "--start",
+            &start.join(","),
+        ])
+        .args([
+            "--log",
+            log.to_str().unwrap(),
+            "--duration-s",
+            "120",
+            "--imposter",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap_or_else(|e| panic!("cannot start the stand-in ({e}) => {INSTALL_HINT}"));
+    let stdout = child.stdout.take().unwrap();
+    let standin = StandIn(child);
+    let ready = tokio::task::spawn_blocking(move || {
+        BufReader::new(stdout)
+            .lines()
+            .map_while(Result::ok)
+            .any(|l| l.trim() == "ready")
+    });
+    assert!(
+        tokio::time::timeout(Duration::from_secs(300), ready)
+            .await
+            .expect("the stand-in said ready within 300 s")
+            .unwrap(),
+        "the stand-in exited before it was ready"
+    );
+
+    let mut cfg = SimNodeConfig {
+        scene: SceneKind::Free,
+        engine: Engine::JointSpace,
+        bus: bus_config(domain, &endpoint),
+        ..SimNodeConfig::default()
+    };
+    cfg.cameras.enabled = false;
+    cfg.pr2_arm.backend = ArmBackendKind::Ros2Control;
+    cfg.pr2_arm.ros2_control.command_joints = controller_joints.clone();
+    teleop_node::NodeConfig::validate(&cfg).unwrap();
+    let sim_bus = Bus::open("remote_sim", &cfg.bus).await.unwrap();
+    let mut sim = SimNode::new(&cfg, &sim_bus).await.unwrap();
+    let ctrl_bus = Bus::open("pr2_arm_controller", &bus_config(domain, &endpoint))
+        .await
+        .unwrap();
+    let command_pub = ctrl_bus
+        .publisher(&topics::HW_PR2_ARM_COMMAND)
+        .await
+        .unwrap();
+    let state_sub = ctrl_bus
+        .subscriber(&topics::HW_PR2_ARM_STATE)
+        .await
+        .unwrap();
+    let limits = ArmSafety::new(
+        teleop_kinematics::robots::pr2_arm_chain().unwrap(),
+        cfg.safety.arm.clone(),
+    )
+    .unwrap()
+    .limits()
+    .velocity_rad_s
+        * cfg.safety.arm.velocity_fraction;
+
+    let rig = Rig {
+        sim_bus: &sim_bus,
+        command_pub: &command_pub,
+        state_sub: &state_sub,
+    };
+    let mut newest: Option<ArmState<7>> = None;
+
+    // 1. Connected: the robot's state (the broadcaster's, not the imposter's 3.0s),
+    //    mapped by name, arrives on the hardware topic.
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while newest.is_none() && Instant::now() < deadline {
+        rig.run(&mut sim, 0.2, None, &mut newest).await;
+    }
+    let first = newest.expect("the ros2_control arm's state reached the hardware topic");
+    for (i, want) in WORKING_POSTURE_RAD.iter().enumerate() {
+        let got = first.position_rad[i];
+        assert!(
+            (got - want).abs() < 1e-6,
+            "joint {i} mapped by name: {got} vs {want}"
+        );
+    }
+    assert_eq!(sim.state(), Lifecycle::Active, "{}", sim.last_error());
+
+    // 2. The arm follows: 0.2 rad/s on the shoulder pan joint for 2 s.
+    let mut v = SVector::<f64, 7>::zeros();
+    v[0] = 0.2;
+    rig.run(&mut sim, 2.0, Some(v), &mut newest).await;
+    let moved = newest.unwrap().position_rad[0] - first.position_rad[0];
+    assert!(
+        (0.25..0.45).contains(&moved),
+        "0.2 rad/s for 2 s moved the shoulder pan {moved:.3} rad"
+    );
+
+    // 3. Commands stop: the safety layer's timeout sends zero, the arm stops.
+    rig.run(&mut sim, 1.0, None, &mut newest).await;
+    let held = newest.unwrap().position_rad[0];
+    rig.run(&mut sim, 1.0, None, &mut newest).await;
+    let drift = (newest.unwrap().position_rad[0] - held).abs();
+    assert!(
+        drift < 1e-3,
+        "the arm kept moving {drift} rad after commands stopped"
+    );
+
+    // 4. Far over the limits: what reaches the robot stays within them.
+    let over_from = wall_s();
+    rig.run(&mut sim, 1.0, Some(SVector::repeat(5.0)), &mut newest)
+        .await;
+
+    // 5. The owning process stalls mid-motion: the backend's watchdog stops the arm.
+    let stalled_at = wall_s();
+    tokio::time::sleep(Duration::from_millis(600)).await;
+    let counters = sim.counters();
+    let counter = |name: &str| {
+        counters
+            .iter()
+            .find(|(k, _)| k == name)
+            .map(|(_, v)| *v)
+            .unwrap_or_else(|| panic!("counter {name} in {counters:?}"))
+    };
+    assert!(counter("pr2_arm.ros2_control.watchdog_stops") >= 1);
+    // The imposter's joint states were dropped by GID, none refused as malformed.
+    assert!(
+        counter("joint_states.rejected_foreign") >= 5,
+        "{counters:?}"
+    );
+    assert_eq!(counter("pr2_arm.ros2_control.bad_states"), 0);
+    drop(sim);
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    drop(standin);
+
+    let received: Vec<Received> = std::fs::read_to_string(&log)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert!(
+        received.len() > 100,
+        "{} commands reached the robot",
+        received.len()
+    );
+    // Limits: every command in the controller's order (reversed), within the safety
+    // layer's joint velocity limits.
+    let mut peak = [0.0f64; 7];
+    for r in &received {
+        assert_eq!(r.data.len(), 7);
+        for (k, value) in r.data.iter().enumerate() {
+            let joint = 6 - k;
+            peak[joint] = peak[joint].max(value.abs());
+            assert!(
+                value.abs() <= limits[joint] + 1e-9,
+                "joint {joint}: {value} rad/s reached the robot (limit {})",
+                limits[joint]
+            );
+        }
+    }
+    let over: Vec<&Received> = received
+        .iter()
+        .filter(|r| r.t > over_from && r.t < stalled_at)
+        .collect();
+    assert!(
+        over.iter().any(|r| r.data.iter().any(|v| v.abs() > 0.05)),
+        "the over-limit phase moved the arm"
+    );
+    // After the stall: within 0.5 s a zero command, and the last command is zero.
+    let after_stall: Vec<&Received> = received.iter().filter(|r| r.t > stalled_at).collect();
+    let zero_at = after_stall
+        .iter()
+        .find(|r| r.data.iter().all(|v| *v == 0.0))
+        .map(|r| r.t)
+        .expect("the watchdog sent zero velocity after the stall");
+    assert!(
+        zero_at - stalled_at < 0.5,
+        "zero {:.3} s after the stall",
+        zero_at - stalled_at
+    );
+    assert!(received.last().unwrap().data.iter().all(|v| *v == 0.0));
+    let mut out = std::io::stderr();
+    let _ = writeln!(
+        out,
+        "ros2_control stand-in: {} commands received, peak |v| per joint {peak:?} rad/s, \
+         zero {:.0} ms after the stall; type {}",
+        received.len(),
+        (zero_at - stalled_at) * 1e3,
+        teleop_msgs::Float64MultiArray::TYPE_NAME
+    );
+}
