@@ -18,7 +18,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::io::{BufRead, BufReader, Write};
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
 
 use nalgebra::SVector;
@@ -31,7 +31,7 @@ use teleop_msgs::{JointState, Lifecycle, Message};
 use teleop_node::Node;
 use teleop_sim::WORKING_POSTURE_RAD;
 use teleop_sim_nodes::remote_sim::{ArmBackendKind, Engine, SceneKind, SimNode, SimNodeConfig};
-use teleop_system_tests::{free_port, repo_root};
+use teleop_system_tests::{free_port, pyzeros_python, repo_root};
 
 const INSTALL_HINT: &str = "install the interop packages with `pip install -r \
      tests/interop/requirements.txt`, or point TELEOP_PYTHON at a Python that has them";
@@ -110,27 +110,16 @@ fn wall_s() -> f64 {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_robot_site_drives_a_ros2_control_arm_within_its_limits() {
-    let python = std::env::var("TELEOP_PYTHON").unwrap_or_else(|_| "python3".into());
-    // pyzeros compiles its serializers once into this cache (outside the clone, reused
-    // between runs; by default it would land in the working directory).
-    let cydr_cache = std::env::var_os("CYDR_CACHE_DIR").map_or_else(
-        || {
-            std::path::PathBuf::from(std::env::var_os("HOME").unwrap_or_default())
-                .join(".cache/teleop-cydr")
-        },
-        std::path::PathBuf::from,
-    );
-    let probe = Command::new(&python)
-        .env("CYDR_CACHE_DIR", &cydr_cache)
-        .args(["-c", "import pyzeros, ros2_pyterfaces"])
+    let probe = pyzeros_python("-c")
+        .arg("import pyzeros, ros2_pyterfaces")
         .output();
     match probe {
         Ok(out) if out.status.success() => {}
         Ok(out) => panic!(
-            "`{python}` cannot import pyzeros:\n{}\n=> {INSTALL_HINT}",
+            "the interop Python cannot import pyzeros:\n{}\n=> {INSTALL_HINT}",
             String::from_utf8_lossy(&out.stderr)
         ),
-        Err(e) => panic!("cannot run `{python}` ({e}) => {INSTALL_HINT}"),
+        Err(e) => panic!("cannot run the interop Python ({e}) => {INSTALL_HINT}"),
     }
     let domain = 83;
     let port = free_port().unwrap();
@@ -149,9 +138,8 @@ async fn the_robot_site_drives_a_ros2_control_arm_within_its_limits() {
         .rev()
         .map(|v| format!("{v}"))
         .collect();
-    let mut child = Command::new(&python)
-        .env("CYDR_CACHE_DIR", &cydr_cache)
-        .arg(repo_root().join("tests/interop/ros2_control_standin.py"))
+    let script = repo_root().join("tests/interop/ros2_control_standin.py");
+    let mut child = pyzeros_python(script.to_str().unwrap())
         .args(["--listen", &endpoint, "--domain", &domain.to_string()])
         .args([
             "--joints",

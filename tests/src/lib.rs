@@ -15,6 +15,21 @@ pub fn repo_root() -> PathBuf {
 
 pub use teleop_bus::testing::{free_port, isolated_pair};
 
+/// A command running `script` with the Python of the interop tests (`$TELEOP_PYTHON`,
+/// else `python3`), for the scripts on pyzeros: it compiles its serializers once into
+/// `$CYDR_CACHE_DIR`, by default `~/.cache/teleop-cydr` (outside the clone, reused
+/// between runs; left unset it would land in the working directory).
+pub fn pyzeros_python(script: &str) -> std::process::Command {
+    let python = std::env::var("TELEOP_PYTHON").unwrap_or_else(|_| "python3".into());
+    let cache = std::env::var_os("CYDR_CACHE_DIR").map_or_else(
+        || PathBuf::from(std::env::var_os("HOME").unwrap_or_default()).join(".cache/teleop-cydr"),
+        PathBuf::from,
+    );
+    let mut command = std::process::Command::new(python);
+    command.env("CYDR_CACHE_DIR", cache).arg(script);
+    command
+}
+
 /// The wrist tracker's in-process devices, driven by one simulated operator: the pedals,
 /// and the wrist pose source too when `tracker` (set `[source]` to
 /// `TrackerSource::InProcess` then). The node's library does not link the simulator;

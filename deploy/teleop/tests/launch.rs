@@ -1207,3 +1207,72 @@ fn spawn_teleop(args: &[&str]) -> std::process::Child {
         .spawn()
         .unwrap_or_else(|e| panic!("start teleop {args:?}: {e}"))
 }
+
+/// A ROS 2 graph tool nobody here wrote, `zenoh-ros2 topic list -t` (ROBOTIS's
+/// `zenoh-ros2-sdk`, PyPI), reads the running system's liveliness tokens and lists every
+/// topic of the topic table with its ROS 2 type, and nothing else.
+#[test]
+fn a_ros2_graph_tool_lists_every_topic_of_a_running_system_with_its_type() {
+    let _one = one_system();
+    let python = std::env::var("TELEOP_PYTHON").unwrap_or_else(|_| "python3".into());
+    let mut system = Command::new(env!("CARGO_BIN_EXE_teleop"))
+        .args([
+            "--domain-id",
+            "92",
+            "launch",
+            "--duration-s",
+            "20",
+            "--quiet",
+        ])
+        .arg("--no-report-files")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("start teleop launch");
+    let expected: std::collections::BTreeSet<String> = teleop_interfaces::topics::ALL
+        .iter()
+        .map(|t| format!("/{} [{}]", t.name, t.type_name))
+        .collect();
+    // The nodes need a few seconds to start; ask until the whole table is there.
+    let mut listed = std::collections::BTreeSet::new();
+    let started = std::time::Instant::now();
+    while listed != expected && started.elapsed() < std::time::Duration::from_secs(15) {
+        std::thread::sleep(std::time::Duration::from_secs(2));
+        let out = Command::new(&python)
+            .args([
+                "-c",
+                "import sys; from zenoh_ros2_sdk.cli import main; sys.exit(main())",
+            ])
+            .args(["--domain-id", "92", "--no-daemon", "--timeout", "2"])
+            .args(["topic", "list", "-t"])
+            // Its own session config is rmw_zenoh's (a router on 7447); here it finds
+            // the peers as they find each other: multicast scouting on loopback.
+            .env(
+                "ZENOH_CONFIG_OVERRIDE",
+                "connect/endpoints=[];scouting/multicast/enabled=true;\
+                 scouting/multicast/interface=\"lo\"",
+            )
+            .output()
+            .expect("run zenoh-ros2 (pip install -r tests/interop/requirements.txt)");
+        assert!(
+            out.status.success(),
+            "zenoh-ros2 topic list failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        listed = String::from_utf8_lossy(&out.stdout)
+            .lines()
+            .map(|l| l.trim().to_owned())
+            .filter(|l| !l.is_empty())
+            .collect();
+    }
+    let _ = system.kill();
+    let _ = system.wait();
+    let missing: Vec<&String> = expected.difference(&listed).collect();
+    let extra: Vec<&String> = listed.difference(&expected).collect();
+    assert!(
+        missing.is_empty() && extra.is_empty(),
+        "the graph tool's list differs from the topic table: missing {missing:#?}, \
+         not in the table {extra:#?}"
+    );
+    assert_eq!(listed.len(), teleop_interfaces::topics::ALL.len());
+}

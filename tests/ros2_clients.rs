@@ -1,0 +1,306 @@
+//! An independent ROS 2 client decodes every topic type of the project off the wire:
+//! `tests/interop/pyzeros_decode.py`, on pyzeros (PyPI), with the project's own `.msg`
+//! types (and tf2_msgs/TFMessage) defined on its side. pyzeros puts its own RIHS01 type
+//! hashes in the rmw_zenoh data keys it subscribes to, so a sample reaches it only when
+//! its hash equals ours; every field it decodes must equal what was sent.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::collections::BTreeMap;
+use std::io::{BufRead, BufReader};
+use std::process::Stdio;
+use std::time::{Duration, Instant};
+
+use serde::Serialize;
+use teleop_bus::{Bus, BusConfig, ZenohSettings};
+use teleop_interfaces::{Direction, Publishers, QosClass, Topic};
+use teleop_msgs::{
+    CompressedImage, FingertipPressures, Float64MultiArray, Header, Image, JointCommand,
+    JointState, Message, MultiArrayDimension, MultiArrayLayout, NodeStatus, OperatorInput, Point,
+    Pose, PoseStamped, Quaternion, TFMessage, Time, Transform, TransformStamped, Vector3,
+};
+use teleop_system_tests::{free_port, pyzeros_python, repo_root};
+
+const INSTALL_HINT: &str = "install the interop packages with `pip install -r \
+     tests/interop/requirements.txt`, or point TELEOP_PYTHON at a Python that has them";
+
+fn header(k: u32) -> Header {
+    Header::new(
+        Time {
+            sec: 1_765_000_000 + i32::try_from(k).unwrap(),
+            nanosec: 123_456_789 + k,
+        },
+        format!("frame_{k}"),
+    )
+}
+
+/// A publisher of `msg` on `topic`, sending it until told to stop.
+struct Sender {
+    name: &'static str,
+    type_name: &'static str,
+    type_hash: &'static str,
+    sent: serde_json::Value,
+    put: Box<dyn Fn() + Send + Sync>,
+}
+
+async fn sender<T: Message + Serialize>(bus: &Bus, name: &'static str, msg: T) -> Sender {
+    let topic: Topic<T> = Topic::new(
+        name,
+        Direction::Both,
+        10.0,
+        QosClass::Diagnostics,
+        None,
+        Publishers::EveryNode,
+        "interop test",
+    );
+    let publisher = bus.publisher(&topic).await.unwrap();
+    let sent = serde_json::to_value(&msg).unwrap();
+    Sender {
+        name,
+        type_name: T::TYPE_NAME,
+        type_hash: T::TYPE_HASH,
+        sent,
+        put: Box::new(move || publisher.put(&msg).unwrap()),
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn pyzeros_decodes_every_topic_type_with_the_values_sent() {
+    let domain = 84;
+    let port = free_port().unwrap();
+    let bus = Bus::open(
+        "interop_sender",
+        &BusConfig {
+            domain_id: domain,
+            zenoh: ZenohSettings {
+                listen: vec![format!("tcp/127.0.0.1:{port}")],
+                multicast_scouting: false,
+                ..Default::default()
+            },
+            ..Default::default()
+        },
+    )
+    .await
+    .unwrap();
+    let pose = |k: f64| Pose {
+        position: Point {
+            x: 0.1 * k,
+            y: -0.25,
+            z: 1.0 / 3.0,
+        },
+        orientation: Quaternion {
+            x: 0.0,
+            y: 0.6,
+            z: 0.0,
+            w: 0.8,
+        },
+    };
+    let senders = vec![
+        sender(
+            &bus,
+            "interop/pose_stamped",
+            PoseStamped {
+                header: header(1),
+                pose: pose(1.0),
+            },
+        )
+        .await,
+        sender(
+            &bus,
+            "interop/joint_state",
+            JointState {
+                header: header(2),
+                name: vec!["a".into(), "b_joint".into()],
+                position: vec![0.5, -1.25e-3],
+                velocity: vec![f64::MAX, f64::MIN_POSITIVE],
+                effort: vec![],
+            },
+        )
+        .await,
+        sender(
+            &bus,
+            "interop/operator_input",
+            OperatorInput {
+                header: header(3),
+                clutch: true,
+                enable: false,
+                camera_stop: true,
+                motion_scale: 0.75,
+            },
+        )
+        .await,
+        sender(
+            &bus,
+            "interop/fingertip_pressures",
+            FingertipPressures {
+                header: header(4),
+                ff: 0.5,
+                mf: 1.5,
+                rf: 2.5,
+                lf: 3.5,
+                th: 4.25,
+            },
+        )
+        .await,
+        sender(
+            &bus,
+            "interop/image",
+            Image {
+                header: header(5),
+                height: 2,
+                width: 3,
+                encoding: "16UC1".into(),
+                is_bigendian: 0,
+                step: 6,
+                data: (0..12).map(|i| i * 21).collect(),
+            },
+        )
+        .await,
+        sender(
+            &bus,
+            "interop/compressed_image",
+            CompressedImage {
+                header: header(6),
+                format: "jpeg".into(),
+                data: vec![0xff, 0xd8, 0xff, 0x00, 0x7f],
+            },
+        )
+        .await,
+        sender(
+            &bus,
+            "interop/joint_command",
+            JointCommand {
+                header: header(7),
+                mode: "impedance".into(),
+                name: vec!["rh_FFJ3".into()],
+                position: vec![0.25],
+                velocity: vec![0.0],
+                effort: vec![-0.125],
+                stiffness: vec![2.0],
+                damping: vec![0.05],
+                max_effort: vec![0.4],
+            },
+        )
+        .await,
+        sender(
+            &bus,
+            "interop/node_status",
+            NodeStatus {
+                header: header(8),
+                node_name: "remote_sim".into(),
+                lifecycle_state: 2,
+                counter_names: vec!["x.received".into(), "y".into()],
+                counter_values: vec![u64::MAX, 7],
+                last_error: "recovered at 08:20:27.2 UTC: ü".into(),
+            },
+        )
+        .await,
+        sender(&bus, "interop/header", header(9)).await,
+        sender(
+            &bus,
+            "interop/tf_message",
+            TFMessage {
+                transforms: vec![TransformStamped {
+                    header: header(10),
+                    child_frame_id: "can".into(),
+                    transform: Transform {
+                        translation: Vector3 {
+                            x: 0.5,
+                            y: 0.0,
+                            z: 0.75,
+                        },
+                        rotation: pose(0.0).orientation,
+                    },
+                }],
+            },
+        )
+        .await,
+        sender(
+            &bus,
+            "interop/float64_multi_array",
+            Float64MultiArray {
+                layout: MultiArrayLayout {
+                    dim: vec![MultiArrayDimension {
+                        label: "joints".into(),
+                        size: 3,
+                        stride: 3,
+                    }],
+                    data_offset: 0,
+                },
+                data: vec![0.1, -0.2, 0.3],
+            },
+        )
+        .await,
+    ];
+    assert_eq!(
+        senders.len(),
+        teleop_msgs::topic_types().len(),
+        "every topic type"
+    );
+    let topics: Vec<String> = senders
+        .iter()
+        .map(|s| format!("/{}={}", s.name, s.type_name))
+        .collect();
+    let script = repo_root().join("tests/interop/pyzeros_decode.py");
+    let mut child = pyzeros_python(script.to_str().unwrap())
+        .args(["--connect", &format!("tcp/127.0.0.1:{port}")])
+        .args([
+            "--domain",
+            &domain.to_string(),
+            "--topics",
+            &topics.join(","),
+        ])
+        .args(["--timeout-s", "120"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap_or_else(|e| panic!("cannot run the interop Python ({e}) => {INSTALL_HINT}"));
+    let stdout = child.stdout.take().unwrap();
+    let (tx, rx) = std::sync::mpsc::channel::<String>();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let mut decoded: BTreeMap<String, serde_json::Value> = BTreeMap::new();
+    let mut ready = false;
+    let started = Instant::now();
+    while decoded.len() < senders.len() && started.elapsed() < Duration::from_secs(240) {
+        while let Ok(line) = rx.try_recv() {
+            if line.trim() == "ready" {
+                ready = true;
+            } else if let Ok(v) = serde_json::from_str::<serde_json::Value>(&line) {
+                decoded.insert(v["topic"].as_str().unwrap().to_owned(), v);
+            }
+        }
+        if ready {
+            for s in &senders {
+                (s.put)();
+            }
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    assert!(ready, "the decoder never said ready => {INSTALL_HINT}");
+    for s in &senders {
+        let topic = format!("/{}", s.name);
+        let got = decoded.get(&topic).unwrap_or_else(|| {
+            panic!(
+                "pyzeros decoded nothing on {topic} ({}): its type hash differs from ours \
+                 ({}) or its decoder failed",
+                s.type_name, s.type_hash
+            )
+        });
+        assert_eq!(got["type"], s.type_name, "{topic}");
+        assert_eq!(
+            got["hash"], s.type_hash,
+            "{topic}: pyzeros's own RIHS01 hash"
+        );
+        assert_eq!(
+            got["msg"], s.sent,
+            "{topic}: decoded values differ from those sent"
+        );
+    }
+}
