@@ -30,7 +30,7 @@ use teleop_interfaces::topics;
 use teleop_msgs::{JointState, Lifecycle, Message};
 use teleop_node::Node;
 use teleop_sim::WORKING_POSTURE_RAD;
-use teleop_sim_nodes::remote_sim::{ArmBackendKind, Engine, SceneKind, SimNode, SimNodeConfig};
+use teleop_sim_nodes::remote_sim::{BackendKind, Engine, SceneKind, SimNode, SimNodeConfig};
 use teleop_system_tests::{free_port, pyzeros_python, repo_root};
 
 const INSTALL_HINT: &str = "install the interop packages with `pip install -r \
@@ -43,6 +43,38 @@ impl Drop for StandIn {
     fn drop(&mut self) {
         let _ = self.0.kill();
         let _ = self.0.wait();
+    }
+}
+
+impl StandIn {
+    /// Starts the stand-in listening on `endpoint` in `domain`, logging the commands it
+    /// receives to `log`, with `args` after those; returns once it is ready.
+    async fn start(endpoint: &str, domain: u32, log: &std::path::Path, args: &[&str]) -> Self {
+        let script = repo_root().join("tests/interop/ros2_control_standin.py");
+        let mut child = pyzeros_python(script.to_str().unwrap())
+            .args(["--listen", endpoint, "--domain", &domain.to_string()])
+            .args(["--log", log.to_str().unwrap(), "--duration-s", "120"])
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .unwrap_or_else(|e| panic!("cannot start the stand-in ({e}) => {INSTALL_HINT}"));
+        let stdout = child.stdout.take().unwrap();
+        let standin = StandIn(child);
+        let ready = tokio::task::spawn_blocking(move || {
+            BufReader::new(stdout)
+                .lines()
+                .map_while(Result::ok)
+                .any(|l| l.trim() == "ready")
+        });
+        assert!(
+            tokio::time::timeout(Duration::from_secs(300), ready)
+                .await
+                .expect("the stand-in said ready within 300 s")
+                .unwrap(),
+            "the stand-in exited before it was ready"
+        );
+        standin
     }
 }
 
@@ -138,41 +170,14 @@ async fn the_robot_site_drives_a_ros2_control_arm_within_its_limits() {
         .rev()
         .map(|v| format!("{v}"))
         .collect();
-    let script = repo_root().join("tests/interop/ros2_control_standin.py");
-    let mut child = pyzeros_python(script.to_str().unwrap())
-        .args(["--listen", &endpoint, "--domain", &domain.to_string()])
-        .args([
-            "--joints",
-            &controller_joints.join(","),
-            "--start",
-            &start.join(","),
-        ])
-        .args([
-            "--log",
-            log.to_str().unwrap(),
-            "--duration-s",
-            "120",
-            "--imposter",
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .unwrap_or_else(|e| panic!("cannot start the stand-in ({e}) => {INSTALL_HINT}"));
-    let stdout = child.stdout.take().unwrap();
-    let standin = StandIn(child);
-    let ready = tokio::task::spawn_blocking(move || {
-        BufReader::new(stdout)
-            .lines()
-            .map_while(Result::ok)
-            .any(|l| l.trim() == "ready")
-    });
-    assert!(
-        tokio::time::timeout(Duration::from_secs(300), ready)
-            .await
-            .expect("the stand-in said ready within 300 s")
-            .unwrap(),
-        "the stand-in exited before it was ready"
-    );
+    let (joints_arg, start_arg) = (controller_joints.join(","), start.join(","));
+    let standin = StandIn::start(
+        &endpoint,
+        domain,
+        &log,
+        &["--joints", &joints_arg, "--start", &start_arg, "--imposter"],
+    )
+    .await;
 
     let mut cfg = SimNodeConfig {
         scene: SceneKind::Free,
@@ -181,7 +186,7 @@ async fn the_robot_site_drives_a_ros2_control_arm_within_its_limits() {
         ..SimNodeConfig::default()
     };
     cfg.cameras.enabled = false;
-    cfg.pr2_arm.backend = ArmBackendKind::Ros2Control;
+    cfg.pr2_arm.backend = BackendKind::Ros2Control;
     cfg.pr2_arm.ros2_control.command_joints = controller_joints.clone();
     teleop_node::NodeConfig::validate(&cfg).unwrap();
     let sim_bus = Bus::open("remote_sim", &cfg.bus).await.unwrap();
@@ -330,5 +335,171 @@ async fn the_robot_site_drives_a_ros2_control_arm_within_its_limits() {
         received.len(),
         (zero_at - stalled_at) * 1e3,
         teleop_msgs::Float64MultiArray::TYPE_NAME
+    );
+}
+
+/// The hand through a ros2_control position controller (its own stand-in, in the
+/// hand's namespace): the hand reaches a commanded posture; a posture beyond the joint
+/// limits reaches the robot clamped within them; an effort command, which a position
+/// interface cannot take, is refused by name and moves nothing.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_robot_site_drives_a_ros2_control_hand_by_position_within_its_limits() {
+    use teleop_hardware::HandCommand;
+    use teleop_hardware::safety::HandLimits;
+    use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
+    use teleop_sim_nodes::remote_sim::BackendKind;
+
+    let domain = 85;
+    let port = free_port().unwrap();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let dir = std::env::temp_dir().join(format!("teleop-ros2-hand-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let log = dir.join("commands.jsonl");
+    let joints: Vec<String> = SHADOW_FINGER_JOINTS
+        .iter()
+        .map(|s| (*s).to_owned())
+        .collect();
+    let limits = HandLimits::shadow().unwrap();
+    // Start mid-range.
+    let start: Vec<f64> = (0..17)
+        .map(|i| 0.5 * (limits.lower_rad[i] + limits.upper_rad[i]))
+        .collect();
+    let (joints_arg, start_arg) = (
+        joints.join(","),
+        start
+            .iter()
+            .map(f64::to_string)
+            .collect::<Vec<_>>()
+            .join(","),
+    );
+    let standin = StandIn::start(
+        &endpoint,
+        domain,
+        &log,
+        &[
+            "--joints",
+            &joints_arg,
+            "--start",
+            &start_arg,
+            "--mode",
+            "position",
+            "--controller",
+            "hand_position_controller",
+            "--state-topic",
+            "/hand/joint_states",
+            "--max-velocity",
+            "10",
+        ],
+    )
+    .await;
+
+    let mut cfg = SimNodeConfig {
+        scene: SceneKind::Free,
+        engine: Engine::JointSpace,
+        bus: bus_config(domain, &endpoint),
+        ..SimNodeConfig::default()
+    };
+    cfg.cameras.enabled = false;
+    cfg.shadow_hand.backend = BackendKind::Ros2Control;
+    cfg.shadow_hand.ros2_control.mode = teleop_hardware_bus::HandControllerMode::Position;
+    cfg.shadow_hand.ros2_control.ros2_control.command_topic =
+        "/hand_position_controller/commands".into();
+    cfg.shadow_hand.ros2_control.ros2_control.state_topic = "/hand/joint_states".into();
+    teleop_node::NodeConfig::validate(&cfg).unwrap();
+    let sim_bus = Bus::open("remote_sim", &cfg.bus).await.unwrap();
+    let mut sim = SimNode::new(&cfg, &sim_bus).await.unwrap();
+    let ctrl_bus = Bus::open("shadow_hand_controller", &bus_config(domain, &endpoint))
+        .await
+        .unwrap();
+    let command_pub = ctrl_bus.publisher(&topics::HW_HAND_COMMAND).await.unwrap();
+    let state_sub = ctrl_bus.subscriber(&topics::HW_HAND_STATE).await.unwrap();
+
+    let mut newest: Option<JointState> = None;
+    let run = async |sim: &mut SimNode, secs: f64, command: Option<HandCommand>| {
+        let mut newest = None;
+        let t0 = Instant::now();
+        while t0.elapsed().as_secs_f64() < secs {
+            let now = sim_bus.now_s();
+            if let Some(c) = &command {
+                command_pub.put(&wire::hand_command_msg(c, now)).unwrap();
+            }
+            sim.tick(now);
+            while let Some(r) = state_sub.try_recv() {
+                newest = Some(r.msg);
+            }
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+        newest
+    };
+    let position = |msg: &JointState| {
+        wire::joint_vector(msg, &SHADOW_FINGER_JOINTS, wire::Field::Position).unwrap()
+    };
+    // 1. Connected, mapped by name.
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while newest.is_none() && Instant::now() < deadline {
+        newest = run(&mut sim, 0.2, None).await;
+    }
+    let first = position(&newest.expect("the hand's state reached the hardware topic"));
+    for (i, want) in start.iter().enumerate() {
+        assert!(
+            (first[i] - want).abs() < 1e-6,
+            "joint {i}: {} vs {want}",
+            first[i]
+        );
+    }
+    assert_eq!(sim.state(), Lifecycle::Active, "{}", sim.last_error());
+    // 2. A posture 0.2 rad away (toward the upper limits) is reached.
+    let target = first.map(|v| v + 0.05) + SVector::<f64, 17>::repeat(0.15);
+    let target = target.zip_zip_map(&limits.lower_rad, &limits.upper_rad, |v, lo, hi| {
+        v.clamp(lo + 0.05, hi - 0.05)
+    });
+    let reached = run(&mut sim, 2.0, Some(HandCommand::Position(target))).await;
+    let err = (position(&reached.unwrap()) - target).amax();
+    assert!(
+        err < 0.01,
+        "the hand is {err:.4} rad from the commanded posture"
+    );
+    // 3. Beyond the limits: what reaches the robot is within them.
+    let beyond = SVector::<f64, 17>::repeat(5.0);
+    run(&mut sim, 1.5, Some(HandCommand::Position(beyond))).await;
+    // 4. Efforts on a position interface: refused by name.
+    run(
+        &mut sim,
+        0.3,
+        Some(HandCommand::Effort(SVector::repeat(0.1))),
+    )
+    .await;
+    assert!(
+        sim.last_error().contains("takes positions"),
+        "{}",
+        sim.last_error()
+    );
+    drop(sim);
+    drop(standin);
+    let received: Vec<Received> = std::fs::read_to_string(&log)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert!(received.len() > 100, "{} commands", received.len());
+    let mut at_upper = 0;
+    for r in &received {
+        assert_eq!(r.data.len(), 17);
+        for (i, v) in r.data.iter().enumerate() {
+            assert!(
+                *v >= limits.lower_rad[i] - 1e-9 && *v <= limits.upper_rad[i] + 1e-9,
+                "joint {} commanded {v} outside [{}, {}]",
+                SHADOW_FINGER_JOINTS[i],
+                limits.lower_rad[i],
+                limits.upper_rad[i]
+            );
+            if (*v - limits.upper_rad[i]).abs() < 0.05 {
+                at_upper += 1;
+            }
+        }
+    }
+    assert!(
+        at_upper > 17,
+        "the over-limit posture was sent clamped at the limits"
     );
 }

@@ -2,11 +2,12 @@
 Zenoh, PyPI), for tests/ros2_control.rs.
 
 It behaves as a robot under ros2_control with two controllers:
-  * forward_velocity_controller: takes std_msgs/msg/Float64MultiArray on
-    /forward_velocity_controller/commands, one velocity per joint in its `joints` order,
-    and (as the real controller does) keeps the last command forever;
-  * joint_state_broadcaster: publishes sensor_msgs/msg/JointState on /joint_states at
-    100 Hz, joints in an order of its own, with one extra joint the arm does not have.
+  * a forward command controller (--controller, default forward_velocity_controller):
+    takes std_msgs/msg/Float64MultiArray on /<controller>/commands, one value per joint
+    in its `joints` order, velocities or (--mode position) positions, and (as the real
+    controller does) keeps the last command forever;
+  * joint_state_broadcaster: publishes sensor_msgs/msg/JointState on --state-topic
+    (default /joint_states) at 100 Hz, joints in an order of its own, with one extra joint the arm does not have.
 The "hardware" integrates the commanded velocities through a first-order lag (time
 constant --lag-s) and clamps them to its own velocity limit (--max-velocity) and the
 positions to +-3 rad.
@@ -47,6 +48,9 @@ def main() -> int:
     ap.add_argument("--lag-s", type=float, default=0.03)
     ap.add_argument("--max-velocity", type=float, default=3.0)
     ap.add_argument("--imposter", action="store_true")
+    ap.add_argument("--mode", choices=["velocity", "position"], default="velocity")
+    ap.add_argument("--controller", default="forward_velocity_controller")
+    ap.add_argument("--state-topic", default="/joint_states")
     args = ap.parse_args()
     joints = args.joints.split(",")
     q = [float(v) for v in args.start.split(",")]
@@ -59,7 +63,8 @@ def main() -> int:
     session = zenoh.open(conf)
 
     lock = threading.Lock()
-    command = [0.0] * len(joints)
+    # A position controller starts holding where the robot is.
+    command = [0.0] * len(joints) if args.mode == "velocity" else list(q)
     log = open(args.log, "w", encoding="utf-8")
 
     def on_command(sample: zenoh.Sample) -> None:
@@ -72,23 +77,21 @@ def main() -> int:
             log.flush()
 
     async def run() -> None:
-        controller = pyzeros.Node(
-            name="forward_velocity_controller", session=session, domain_id=args.domain
-        )
+        controller = pyzeros.Node(name=args.controller, session=session, domain_id=args.domain)
         broadcaster = pyzeros.Node(
             name="joint_state_broadcaster", session=session, domain_id=args.domain
         )
         sub = pyzeros.sub.RawSub(
             Float64MultiArray,
-            "/forward_velocity_controller/commands",
+            f"/{args.controller}/commands",
             callback=on_command,
             session=controller,
         )
-        pub = pyzeros.Pub(JointState, "/joint_states", session=broadcaster)
+        pub = pyzeros.Pub(JointState, args.state_topic, session=broadcaster)
         imposter_pub = None
         if args.imposter:
             imposter = pyzeros.Node(name="imposter", session=session, domain_id=args.domain)
-            imposter_pub = pyzeros.Pub(JointState, "/joint_states", session=imposter)
+            imposter_pub = pyzeros.Pub(JointState, args.state_topic, session=imposter)
         # The broadcaster's order: reversed, with an extra joint in the middle.
         order = list(reversed(range(len(joints))))
         names = [joints[i] for i in order]
@@ -112,7 +115,12 @@ def main() -> int:
                 target = list(command)
             alpha = min(1.0, dt / args.lag_s)
             for i in range(len(joints)):
-                want = max(-args.max_velocity, min(args.max_velocity, target[i]))
+                if args.mode == "velocity":
+                    want = target[i]
+                else:
+                    # The position controller's own loop: toward the target.
+                    want = (target[i] - q[i]) / max(args.lag_s, dt)
+                want = max(-args.max_velocity, min(args.max_velocity, want))
                 v[i] += alpha * (want - v[i])
                 q[i] = max(-3.0, min(3.0, q[i] + v[i] * dt))
             now = time.time_ns()

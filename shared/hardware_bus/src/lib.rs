@@ -11,9 +11,9 @@
 //!   controller node** (bus [`SourcePolicy::Node`](teleop_bus::SourcePolicy)): samples
 //!   of any other publisher are dropped and counted before they are decoded. What they
 //!   hand out must still go through the safety layer (`SafeArm` / `SafeHand`).
-//! * Backends for hardware of other ecosystems: [`ros2_control::Ros2ControlArm`], an arm
-//!   run by ros2_control on ROS 2 (rmw_zenoh), through a forward velocity controller and
-//!   the joint state broadcaster.
+//! * Backends for hardware of other ecosystems: [`Ros2ControlArm`] and
+//!   [`Ros2ControlHand`], robots run by ros2_control on ROS 2 (rmw_zenoh), through
+//!   forward command controllers and the joint state broadcaster.
 
 mod client;
 mod endpoint;
@@ -24,4 +24,6 @@ pub use client::{
     MarkerSample, SILENT_PUBLISHER_AFTER_S,
 };
 pub use endpoint::{ArmEndpoint, HandEndpoint};
-pub use ros2_control::{Ros2ControlArm, Ros2ControlArmConfig};
+pub use ros2_control::{
+    HandControllerMode, Ros2ControlArm, Ros2ControlConfig, Ros2ControlHand, Ros2ControlHandConfig,
+};

@@ -1,20 +1,25 @@
-//! An arm run by ros2_control on ROS 2 (rmw_zenoh), through its standard interfaces:
-//! joint velocities to a forward command controller (`std_msgs/msg/Float64MultiArray`
-//! on the controller's `commands` topic, one value per controller joint in the
-//! controller's order), the measured state from the joint state broadcaster
+//! Robots run by ros2_control on ROS 2 (rmw_zenoh), through its standard interfaces:
+//! commands to a forward command controller (`std_msgs/msg/Float64MultiArray` on the
+//! controller's `commands` topic, one value per controller joint in the controller's
+//! order), the measured state from the joint state broadcaster
 //! (`sensor_msgs/msg/JointState` on `joint_states`, matched by joint name, in any
 //! order, extra joints ignored).
 //!
-//! ros2_control's forward command controllers hold the last command forever. So this
-//! side stops the arm itself: a watchdog thread sends zero velocity when no command has
-//! been written for `command_timeout_s` (the owning process stalled, or stopped
-//! calling [`ArmHardware::write`]), again every `command_timeout_s` while that lasts,
-//! and once more when the backend is dropped. It cannot help when the owning process
-//! dies: a real deployment also needs a controller-side timeout (see
-//! `docs/ros2-control.md`).
+//! * [`Ros2ControlArm`]: joint velocities;
+//! * [`Ros2ControlHand`]: joint efforts (a joint impedance is evaluated here, with the
+//!   newest state, at every write) or joint positions, as the hand's controllers offer.
 //!
-//! Like every backend, it is wrapped by the safety layer (`SafeArm`) in the process
-//! that owns it; what it adds is the mapping and the zero-on-silence above.
+//! ros2_control's forward command controllers hold the last command forever. So where
+//! a held command keeps moving the robot (velocities, efforts) this side stops it
+//! itself: a watchdog thread sends zeros when no command has been written for
+//! `command_timeout_s` (the owning process stalled, or stopped calling `write`), again
+//! every `command_timeout_s` while that lasts, and once more when the backend is
+//! dropped. A held position command holds the fingers still and needs none. It cannot
+//! help when the owning process dies: a real deployment also needs a controller-side
+//! timeout (see `docs/ros2-control.md`).
+//!
+//! Like every backend, each is wrapped by the safety layer (`SafeArm`, `SafeHand`) in
+//! the process that owns it; what they add is the mapping and the zero-on-silence.
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -25,15 +30,18 @@ use nalgebra::SVector;
 use serde::{Deserialize, Serialize};
 use teleop_bus::{Bus, BusError, Publisher, SourcePolicy, Subscriber};
 use teleop_hardware::wire::{self, Field};
-use teleop_hardware::{ArmCommand, ArmHardware, ArmState, HardwareError};
-use teleop_interfaces::{ArmInterface, Direction, Publishers, QosClass, Topic};
-use teleop_msgs::{Float64MultiArray, JointState};
+use teleop_hardware::{
+    ArmCommand, ArmHardware, ArmState, FINGER_DOF, HandCommand, HandHardware, HandState,
+    HardwareError,
+};
+use teleop_interfaces::{ArmInterface, Direction, HandInterface, Publishers, QosClass, Topic};
+use teleop_msgs::{FingertipPressures, Float64MultiArray, JointState};
 
-/// How the arm's ros2_control setup is reached (the robot site's configuration).
+/// How a robot's ros2_control setup is reached (the robot site's configuration).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
-pub struct Ros2ControlArmConfig {
-    /// The forward velocity controller's command topic.
+pub struct Ros2ControlConfig {
+    /// The forward command controller's command topic.
     pub command_topic: String,
     /// The controller's joints in its order (its `joints` parameter), by the robot's
     /// joint names; every command carries one value for each. Empty: the interface's
@@ -53,7 +61,7 @@ pub struct Ros2ControlArmConfig {
     pub command_timeout_s: f64,
 }
 
-impl Default for Ros2ControlArmConfig {
+impl Default for Ros2ControlConfig {
     fn default() -> Self {
         Self {
             command_topic: "/forward_velocity_controller/commands".into(),
@@ -91,12 +99,19 @@ pub enum Ros2ControlConfigError {
     Duration { field: &'static str, value: f64 },
 }
 
-impl Ros2ControlArmConfig {
+/// An interface's name and joints.
+#[derive(Debug, Clone, Copy)]
+struct Joints<'a, const N: usize> {
+    name: &'static str,
+    joints: &'a [&'static str; N],
+}
+
+impl Ros2ControlConfig {
     /// The robot's name of each interface joint, and where each interface joint goes in
     /// a command (index into the controller's joints), with the number of those.
     fn mapping<const N: usize>(
         &self,
-        interface: &ArmInterface<N>,
+        interface: Joints<'_, N>,
     ) -> Result<([String; N], [usize; N], usize), Ros2ControlConfigError> {
         for (field, value) in [
             ("command_topic", &self.command_topic),
@@ -165,15 +180,31 @@ impl Ros2ControlArmConfig {
         Ok((robot, index, controller.len()))
     }
 
-    /// Checks the configuration against `interface` without opening anything.
+    /// Checks the configuration against an arm interface without opening anything.
     ///
     /// # Errors
     /// [`Ros2ControlConfigError`] naming the field at fault.
-    pub fn validate<const N: usize>(
+    pub fn validate_arm<const N: usize>(
         &self,
         interface: &ArmInterface<N>,
     ) -> Result<(), Ros2ControlConfigError> {
-        self.mapping(interface).map(|_| ())
+        self.mapping(Joints {
+            name: interface.name,
+            joints: &interface.joints,
+        })
+        .map(|_| ())
+    }
+
+    /// Checks the configuration against the hand interface without opening anything.
+    ///
+    /// # Errors
+    /// [`Ros2ControlConfigError`] naming the field at fault.
+    pub fn validate_hand(&self, interface: &HandInterface) -> Result<(), Ros2ControlConfigError> {
+        self.mapping(Joints {
+            name: interface.name,
+            joints: &interface.joints,
+        })
+        .map(|_| ())
     }
 }
 
@@ -185,8 +216,11 @@ pub enum Ros2ControlError {
     Config(#[from] Ros2ControlConfigError),
     #[error(transparent)]
     Bus(#[from] BusError),
-    #[error("starting the {arm} command watchdog: {message}")]
-    Watchdog { arm: &'static str, message: String },
+    #[error("starting the {robot} command watchdog: {message}")]
+    Watchdog {
+        robot: &'static str,
+        message: String,
+    },
 }
 
 /// A topic named by configuration. `TopicSpec` names are `'static` (the topic table's
@@ -219,7 +253,7 @@ struct Watch {
     /// Microseconds since `epoch` of the last written command (0: none yet).
     last_write_us: AtomicU64,
     stop: AtomicBool,
-    /// Zero-velocity commands the watchdog sent.
+    /// Zero commands the watchdog sent.
     zeros_sent: AtomicU64,
 }
 
@@ -229,10 +263,23 @@ impl Watch {
     }
 }
 
-/// The arm of an interface table entry, run by ros2_control.
+/// The newest state of the robot's joints, by interface joint.
+#[derive(Debug, Clone, Copy)]
+struct Measured<const N: usize> {
+    /// Receive time on the bus clock, s.
+    received_s: f64,
+    position: SVector<f64, N>,
+    velocity: SVector<f64, N>,
+    /// Zero when the broadcaster sends no efforts.
+    effort: SVector<f64, N>,
+}
+
+/// One robot's link to its ros2_control: the command publisher (and, where a held
+/// command keeps it moving, the zero-on-silence watchdog), the joint state subscriber,
+/// the joint mapping.
 #[derive(Debug)]
-pub struct Ros2ControlArm<const N: usize> {
-    interface: ArmInterface<N>,
+struct Link<const N: usize> {
+    name: &'static str,
     robot_joints: [String; N],
     command_index: [usize; N],
     command_len: usize,
@@ -240,38 +287,36 @@ pub struct Ros2ControlArm<const N: usize> {
     command: Arc<Publisher<Float64MultiArray>>,
     watch: Arc<Watch>,
     watchdog: Option<std::thread::JoinHandle<()>>,
-    /// Newest state, its receive time, and the previous positions with their stamp
-    /// (for velocities when the broadcaster sends none).
-    latest: Option<(ArmState<N>, f64)>,
+    latest: Option<Measured<N>>,
+    /// The previous positions with their stamp (velocities when the broadcaster sends
+    /// none).
     previous: Option<(SVector<f64, N>, f64)>,
     stale_after_s: f64,
     bad_states: u64,
     newest_refusal: Option<String>,
 }
 
-impl<const N: usize> Ros2ControlArm<N> {
-    /// Opens the command publisher and the state subscriber on `bus` and starts the
-    /// zero-on-silence watchdog.
-    ///
-    /// # Errors
-    /// [`Ros2ControlError`]: the configuration does not fit `interface`, or a
-    /// declaration failed.
-    pub async fn new(
+impl<const N: usize> Link<N> {
+    async fn open(
         bus: &Bus,
-        interface: &ArmInterface<N>,
-        cfg: &Ros2ControlArmConfig,
+        interface: Joints<'_, N>,
+        cfg: &Ros2ControlConfig,
+        rate_hz: f64,
+        what: &'static str,
+        zero_on_silence: bool,
     ) -> Result<Self, Ros2ControlError> {
         let (robot_joints, command_index, command_len) = cfg.mapping(interface)?;
+        let name = interface.name;
         let command_topic = configured_topic::<Float64MultiArray>(
             &cfg.command_topic,
             QosClass::Control,
-            interface.state.spec.rate_hz,
-            "ros2_control forward command controller: joint velocities, rad/s",
+            rate_hz,
+            what,
         );
         let state_topic = configured_topic::<JointState>(
             &cfg.state_topic,
             QosClass::State,
-            interface.state.spec.rate_hz,
+            rate_hz,
             "ros2_control joint state broadcaster",
         );
         let policy = if cfg.state_node.is_empty() {
@@ -289,35 +334,38 @@ impl<const N: usize> Ros2ControlArm<N> {
             stop: AtomicBool::new(false),
             zeros_sent: AtomicU64::new(0),
         });
-        let timeout_us = (cfg.command_timeout_s * 1e6) as u64;
-        let watchdog = {
+        let watchdog = if zero_on_silence {
+            let timeout_us = (cfg.command_timeout_s * 1e6) as u64;
             let (watch, command) = (Arc::clone(&watch), Arc::clone(&command));
             let zero = Float64MultiArray::flat(vec![0.0; command_len]);
-            let name = interface.name;
-            std::thread::Builder::new()
-                .name(format!("{name}-ros2-control-watchdog"))
-                .spawn(move || watchdog(&watch, &command, &zero, timeout_us, name))
-                .map_err(|e| Ros2ControlError::Watchdog {
-                    arm: name,
-                    message: e.to_string(),
-                })?
+            Some(
+                std::thread::Builder::new()
+                    .name(format!("{name}-ros2-control-watchdog"))
+                    .spawn(move || watchdog(&watch, &command, &zero, timeout_us, name))
+                    .map_err(|e| Ros2ControlError::Watchdog {
+                        robot: name,
+                        message: e.to_string(),
+                    })?,
+            )
+        } else {
+            None
         };
         tracing::info!(
-            arm = interface.name,
+            robot = name,
             command = %cfg.command_topic,
             state = %cfg.state_topic,
             state_from = %cfg.state_node,
-            "arm driven through ros2_control"
+            "driven through ros2_control"
         );
         Ok(Self {
-            interface: *interface,
+            name,
             robot_joints,
             command_index,
             command_len,
             state,
             command,
             watch,
-            watchdog: Some(watchdog),
+            watchdog,
             latest: None,
             previous: None,
             stale_after_s: cfg.stale_after_s,
@@ -326,33 +374,12 @@ impl<const N: usize> Ros2ControlArm<N> {
         })
     }
 
-    /// Joint states that could not be used (a joint missing, lengths, NaN).
-    pub fn bad_states(&self) -> u64 {
-        self.bad_states
-    }
-
-    /// Zero-velocity commands the watchdog sent because no command was written.
-    pub fn watchdog_stops(&self) -> u64 {
-        self.watch.zeros_sent.load(Ordering::Relaxed)
-    }
-
-    /// Why the newest refused joint state was refused.
-    pub fn newest_refusal(&self) -> Option<&str> {
-        self.newest_refusal.as_deref()
-    }
-
-    /// Counters for the owning node's status, under `prefix`.
-    pub fn counters(&self, prefix: &str) -> Vec<(String, u64)> {
-        let mut out = vec![
-            (format!("{prefix}.bad_states"), self.bad_states),
-            (format!("{prefix}.watchdog_stops"), self.watchdog_stops()),
-        ];
-        out.extend(self.state.named_counters());
-        out
-    }
-
-    /// The state in `msg`, by the robot's joint names.
-    fn convert(&mut self, msg: &JointState) -> Result<ArmState<N>, wire::WireError> {
+    /// The state in `msg`, by the robot's joint names, received at `received_s`.
+    fn convert(
+        &mut self,
+        msg: &JointState,
+        received_s: f64,
+    ) -> Result<Measured<N>, wire::WireError> {
         let names: [&str; N] = std::array::from_fn(|i| self.robot_joints[i].as_str());
         let position = wire::joint_vector(msg, &names, Field::Position)?;
         let stamp_s = msg.header.stamp.as_secs_f64();
@@ -365,12 +392,89 @@ impl<const N: usize> Ros2ControlArm<N> {
         } else {
             wire::joint_vector(msg, &names, Field::Velocity)?
         };
+        let effort = if msg.effort.is_empty() {
+            SVector::zeros()
+        } else {
+            wire::joint_vector(msg, &names, Field::Effort)?
+        };
         self.previous = Some((position, stamp_s));
-        Ok(ArmState {
-            time_s: stamp_s,
-            position_rad: position,
-            velocity_rad_s: velocity,
+        Ok(Measured {
+            received_s,
+            position,
+            velocity,
+            effort,
         })
+    }
+
+    /// Takes the joint states that arrived; the newest fresh one.
+    fn read(&mut self, now_s: f64) -> Result<Measured<N>, HardwareError> {
+        while let Some(r) = self.state.try_recv() {
+            match self.convert(&r.msg, r.receive_time_s()) {
+                Ok(m) => self.latest = Some(m),
+                Err(e) => {
+                    self.bad_states += 1;
+                    let text = format!("{} joint state from ros2_control refused: {e}", self.name);
+                    tracing::debug!("{text}");
+                    self.newest_refusal = Some(text);
+                }
+            }
+        }
+        let m = self.latest.ok_or_else(|| {
+            HardwareError::NotConnected(format!(
+                "no {} joint state received yet on /{}",
+                self.name,
+                self.state.spec().name
+            ))
+        })?;
+        let age_s = now_s - m.received_s;
+        if age_s > self.stale_after_s {
+            return Err(HardwareError::StaleState { age_s });
+        }
+        Ok(m)
+    }
+
+    /// Sends one value per interface joint, in the controller's order.
+    fn send(&mut self, values: &SVector<f64, N>, what: &str) -> Result<(), HardwareError> {
+        if !values.iter().all(|v| v.is_finite()) {
+            return Err(HardwareError::Fault(format!(
+                "non-finite {} {what} command",
+                self.name
+            )));
+        }
+        let mut data = vec![0.0; self.command_len];
+        for (i, &at) in self.command_index.iter().enumerate() {
+            data[at] = values[i];
+        }
+        self.command
+            .put(&Float64MultiArray::flat(data))
+            .map_err(|e| HardwareError::Fault(e.to_string()))?;
+        self.watch
+            .last_write_us
+            .store(self.watch.since_epoch_us().max(1), Ordering::Relaxed);
+        Ok(())
+    }
+
+    fn counters(&self, prefix: &str) -> Vec<(String, u64)> {
+        let mut out = vec![
+            (format!("{prefix}.bad_states"), self.bad_states),
+            (
+                format!("{prefix}.watchdog_stops"),
+                self.watch.zeros_sent.load(Ordering::Relaxed),
+            ),
+        ];
+        out.extend(self.state.named_counters());
+        out
+    }
+}
+
+impl<const N: usize> Drop for Link<N> {
+    fn drop(&mut self) {
+        self.watch.stop.store(true, Ordering::Relaxed);
+        if let Some(handle) = self.watchdog.take()
+            && handle.join().is_err()
+        {
+            tracing::warn!(robot = self.name, "the command watchdog panicked");
+        }
     }
 }
 
@@ -395,93 +499,340 @@ fn watchdog(
             last_zero_us = now;
             watch.zeros_sent.fetch_add(1, Ordering::Relaxed);
             if let Err(e) = command.put(zero) {
-                tracing::warn!(arm = name, "watchdog zero velocity not sent: {e}");
+                tracing::warn!(robot = name, "watchdog zero command not sent: {e}");
             }
         }
     }
-    // The backend is gone: the arm must not keep the last command.
+    // The backend is gone: the robot must not keep the last command.
     if let Err(e) = command.put(zero) {
-        tracing::warn!(arm = name, "final zero velocity not sent: {e}");
+        tracing::warn!(robot = name, "final zero command not sent: {e}");
     }
 }
 
-impl<const N: usize> Drop for Ros2ControlArm<N> {
-    fn drop(&mut self) {
-        self.watch.stop.store(true, Ordering::Relaxed);
-        if let Some(handle) = self.watchdog.take()
-            && handle.join().is_err()
-        {
-            tracing::warn!(arm = self.interface.name, "the command watchdog panicked");
-        }
+/// The arm of an interface table entry, run by ros2_control through a forward
+/// velocity controller.
+#[derive(Debug)]
+pub struct Ros2ControlArm<const N: usize> {
+    link: Link<N>,
+}
+
+impl<const N: usize> Ros2ControlArm<N> {
+    /// Opens the command publisher and the state subscriber on `bus` and starts the
+    /// zero-on-silence watchdog.
+    ///
+    /// # Errors
+    /// [`Ros2ControlError`]: the configuration does not fit `interface`, or a
+    /// declaration failed.
+    pub async fn new(
+        bus: &Bus,
+        interface: &ArmInterface<N>,
+        cfg: &Ros2ControlConfig,
+    ) -> Result<Self, Ros2ControlError> {
+        let joints = Joints {
+            name: interface.name,
+            joints: &interface.joints,
+        };
+        Ok(Self {
+            link: Link::open(
+                bus,
+                joints,
+                cfg,
+                interface.state.spec.rate_hz,
+                "ros2_control forward velocity controller: joint velocities, rad/s",
+                true,
+            )
+            .await?,
+        })
+    }
+
+    /// Joint states that could not be used (a joint missing, lengths, NaN).
+    pub fn bad_states(&self) -> u64 {
+        self.link.bad_states
+    }
+
+    /// Zero-velocity commands the watchdog sent because no command was written.
+    pub fn watchdog_stops(&self) -> u64 {
+        self.link.watch.zeros_sent.load(Ordering::Relaxed)
+    }
+
+    /// Why the newest refused joint state was refused.
+    pub fn newest_refusal(&self) -> Option<&str> {
+        self.link.newest_refusal.as_deref()
+    }
+
+    /// Counters for the owning node's status, under `prefix`.
+    pub fn counters(&self, prefix: &str) -> Vec<(String, u64)> {
+        self.link.counters(prefix)
     }
 }
 
 impl<const N: usize> ArmHardware<N> for Ros2ControlArm<N> {
     fn read(&mut self, now_s: f64) -> Result<ArmState<N>, HardwareError> {
-        while let Some(r) = self.state.try_recv() {
-            match self.convert(&r.msg) {
-                Ok(mut s) => {
-                    let received_s = r.receive_time_s();
-                    // The robot's stamps are its clock; the controllers run on the bus's.
-                    s.time_s = received_s;
-                    self.latest = Some((s, received_s));
-                }
-                Err(e) => {
-                    self.bad_states += 1;
-                    let text = format!(
-                        "{} joint state from ros2_control refused: {e}",
-                        self.interface.name
-                    );
-                    tracing::debug!("{text}");
-                    self.newest_refusal = Some(text);
-                }
-            }
-        }
-        let (state, at) = self.latest.ok_or_else(|| {
-            HardwareError::NotConnected(format!(
-                "no {} joint state received yet on /{}",
-                self.interface.name,
-                self.state.spec().name
-            ))
-        })?;
-        let age_s = now_s - at;
-        if age_s > self.stale_after_s {
-            return Err(HardwareError::StaleState { age_s });
-        }
-        Ok(state)
+        let m = self.link.read(now_s)?;
+        // Stamped on receipt: the robot's stamps are its clock, the controllers run on
+        // the bus's.
+        Ok(ArmState {
+            time_s: m.received_s,
+            position_rad: m.position,
+            velocity_rad_s: m.velocity,
+        })
     }
 
     fn write(&mut self, _now_s: f64, command: &ArmCommand<N>) -> Result<(), HardwareError> {
-        if !command.is_finite() {
-            return Err(HardwareError::Fault(format!(
-                "non-finite {} velocity command",
-                self.interface.name
-            )));
+        self.link.send(&command.velocity_rad_s, "velocity")
+    }
+}
+
+/// Which of the hand's forward command controllers the commands go to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HandControllerMode {
+    /// Joint efforts, N m (an effort controller): effort commands as they are, a joint
+    /// impedance evaluated here at every write with the newest state. An effort
+    /// interface has no position loop: a position command, which is what the safety
+    /// layer sends to hold the hand when commands stop, goes out as zero effort (the
+    /// fingers are no longer driven), counted.
+    Effort,
+    /// Joint positions, rad (a position controller): position commands as they are,
+    /// a joint impedance's set point (the hand's own position loop does the rest).
+    Position,
+}
+
+/// The hand's ros2_control setup.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Ros2ControlHandConfig {
+    pub mode: HandControllerMode,
+    /// The hand driver's fingertip forces (`teleop_msgs/msg/FingertipPressures`, N);
+    /// empty: none, the forces read zero.
+    pub tactile_topic: String,
+    pub ros2_control: Ros2ControlConfig,
+}
+
+impl Default for Ros2ControlHandConfig {
+    fn default() -> Self {
+        Self {
+            mode: HandControllerMode::Effort,
+            tactile_topic: String::new(),
+            ros2_control: Ros2ControlConfig {
+                command_topic: "/hand_effort_controller/commands".into(),
+                ..Ros2ControlConfig::default()
+            },
         }
-        let mut data = vec![0.0; self.command_len];
-        for (i, &at) in self.command_index.iter().enumerate() {
-            data[at] = command.velocity_rad_s[i];
+    }
+}
+
+impl Ros2ControlHandConfig {
+    /// Checks the configuration against `interface` without opening anything.
+    ///
+    /// # Errors
+    /// [`Ros2ControlConfigError`] naming the field at fault.
+    pub fn validate(&self, interface: &HandInterface) -> Result<(), Ros2ControlConfigError> {
+        self.ros2_control.validate_hand(interface)?;
+        if !self.tactile_topic.is_empty() {
+            Ros2ControlConfig {
+                state_topic: self.tactile_topic.clone(),
+                ..self.ros2_control.clone()
+            }
+            .validate_hand(interface)
+            .map_err(|e| match e {
+                Ros2ControlConfigError::Topic { value, .. } => Ros2ControlConfigError::Topic {
+                    field: "tactile_topic",
+                    value,
+                },
+                other => other,
+            })?;
         }
-        self.command
-            .put(&Float64MultiArray::flat(data))
-            .map_err(|e| HardwareError::Fault(e.to_string()))?;
-        self.watch
-            .last_write_us
-            .store(self.watch.since_epoch_us().max(1), Ordering::Relaxed);
         Ok(())
+    }
+}
+
+/// The Shadow hand run by ros2_control through an effort or a position controller.
+#[derive(Debug)]
+pub struct Ros2ControlHand {
+    link: Link<FINGER_DOF>,
+    mode: HandControllerMode,
+    tactile: Option<Subscriber<FingertipPressures>>,
+    forces: [f64; 5],
+    /// The newest state read, for the impedance evaluated at the next write.
+    last: Option<Measured<FINGER_DOF>>,
+    /// Position commands (the safety layer's hold) sent as zero effort in effort mode.
+    positions_as_zero_effort: u64,
+}
+
+impl Ros2ControlHand {
+    /// Opens the links on `bus` (the zero-effort watchdog in effort mode).
+    ///
+    /// # Errors
+    /// [`Ros2ControlError`]: the configuration does not fit `interface`, or a
+    /// declaration failed.
+    pub async fn new(
+        bus: &Bus,
+        interface: &HandInterface,
+        cfg: &Ros2ControlHandConfig,
+    ) -> Result<Self, Ros2ControlError> {
+        cfg.validate(interface)?;
+        let joints = Joints {
+            name: interface.name,
+            joints: &interface.joints,
+        };
+        let (what, zero_on_silence) = match cfg.mode {
+            HandControllerMode::Effort => ("ros2_control hand effort controller: N m", true),
+            HandControllerMode::Position => ("ros2_control hand position controller: rad", false),
+        };
+        let rate_hz = interface.state.spec.rate_hz;
+        let link = Link::open(
+            bus,
+            joints,
+            &cfg.ros2_control,
+            rate_hz,
+            what,
+            zero_on_silence,
+        )
+        .await?;
+        let tactile = if cfg.tactile_topic.is_empty() {
+            None
+        } else {
+            let topic = configured_topic::<FingertipPressures>(
+                &cfg.tactile_topic,
+                QosClass::State,
+                rate_hz,
+                "the hand driver's fingertip forces",
+            );
+            Some(bus.subscriber(&topic).await?)
+        };
+        Ok(Self {
+            link,
+            mode: cfg.mode,
+            tactile,
+            forces: [0.0; 5],
+            last: None,
+            positions_as_zero_effort: 0,
+        })
+    }
+
+    /// Joint states that could not be used.
+    pub fn bad_states(&self) -> u64 {
+        self.link.bad_states
+    }
+
+    /// Why the newest refused joint state was refused.
+    pub fn newest_refusal(&self) -> Option<&str> {
+        self.link.newest_refusal.as_deref()
+    }
+
+    /// Counters for the owning node's status, under `prefix`.
+    pub fn counters(&self, prefix: &str) -> Vec<(String, u64)> {
+        let mut out = self.link.counters(prefix);
+        out.push((
+            format!("{prefix}.positions_as_zero_effort"),
+            self.positions_as_zero_effort,
+        ));
+        out
+    }
+}
+
+impl HandHardware for Ros2ControlHand {
+    fn read(&mut self, now_s: f64) -> Result<HandState, HardwareError> {
+        if let Some(tactile) = &self.tactile {
+            while let Some(r) = tactile.try_recv() {
+                let v = r.msg.values();
+                if v.iter().all(|f| f.is_finite()) {
+                    self.forces = v;
+                } else {
+                    self.link.bad_states += 1;
+                    self.link.newest_refusal = Some(format!(
+                        "{} fingertip forces refused: not finite",
+                        self.link.name
+                    ));
+                }
+            }
+        }
+        let m = self.link.read(now_s)?;
+        self.last = Some(m);
+        Ok(HandState {
+            time_s: m.received_s,
+            position_rad: m.position,
+            velocity_rad_s: m.velocity,
+            effort_nm: m.effort,
+            fingertip_force_n: self.forces,
+        })
+    }
+
+    fn write(&mut self, now_s: f64, command: &HandCommand) -> Result<(), HardwareError> {
+        let name = self.link.name;
+        match (self.mode, command) {
+            (HandControllerMode::Effort, HandCommand::Effort(tau)) => self.link.send(tau, "effort"),
+            (HandControllerMode::Position, HandCommand::Position(q)) => {
+                self.link.send(q, "position")
+            }
+            (HandControllerMode::Position, HandCommand::Impedance(z)) => {
+                self.link.send(&z.position_rad, "position")
+            }
+            (HandControllerMode::Effort, HandCommand::Impedance(z)) => {
+                // Our side closes the impedance loop, with the newest measurement.
+                let m = match self.last {
+                    Some(m) if now_s - m.received_s <= self.link.stale_after_s => m,
+                    _ => {
+                        return Err(HardwareError::NotConnected(format!(
+                            "{name}: no fresh joint state to evaluate the impedance at"
+                        )));
+                    }
+                };
+                let tau = z.effort_at(&m.position, &m.velocity);
+                self.link.send(&tau, "effort")
+            }
+            (HandControllerMode::Effort, HandCommand::Position(_)) => {
+                // The safety layer's hold (or a position command) on an effort
+                // interface, which has no position loop: the fingers are no longer
+                // driven (zero effort), counted.
+                self.positions_as_zero_effort += 1;
+                self.link.send(&SVector::zeros(), "effort")
+            }
+            (HandControllerMode::Position, HandCommand::Effort(_)) => {
+                Err(HardwareError::Fault(format!(
+                    "{name}: an effort command, but the ros2_control controller takes positions"
+                )))
+            }
+        }
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use teleop_interfaces::hardware::PR2_ARM;
+    use teleop_interfaces::hardware::{PR2_ARM, SHADOW_HAND};
+
+    fn arm() -> Joints<'static, 7> {
+        Joints {
+            name: PR2_ARM.name,
+            joints: &PR2_ARM.joints,
+        }
+    }
+
+    #[test]
+    fn the_hand_configuration_names_its_tactile_topic() {
+        assert!(
+            Ros2ControlHandConfig::default()
+                .validate(&SHADOW_HAND)
+                .is_ok()
+        );
+        let bad = Ros2ControlHandConfig {
+            tactile_topic: "/bio tac".into(),
+            ..Ros2ControlHandConfig::default()
+        };
+        assert!(matches!(
+            bad.validate(&SHADOW_HAND),
+            Err(Ros2ControlConfigError::Topic {
+                field: "tactile_topic",
+                ..
+            })
+        ));
+    }
 
     #[test]
     fn the_default_maps_the_interface_joints_in_order() {
-        let (robot, index, len) = Ros2ControlArmConfig::default()
-            .mapping(&PR2_ARM)
-            .expect("valid");
+        let (robot, index, len) = Ros2ControlConfig::default().mapping(arm()).expect("valid");
         assert_eq!(robot[0], PR2_ARM.joints[0]);
         assert_eq!(index, [0, 1, 2, 3, 4, 5, 6]);
         assert_eq!(len, 7);
@@ -497,12 +848,12 @@ mod tests {
             .collect();
         controller[0] = "wrist_roll".into();
         controller.push("torso_lift_joint".into());
-        let cfg = Ros2ControlArmConfig {
+        let cfg = Ros2ControlConfig {
             command_joints: controller,
             joint_names: [(PR2_ARM.joints[6].to_owned(), "wrist_roll".to_owned())].into(),
-            ..Ros2ControlArmConfig::default()
+            ..Ros2ControlConfig::default()
         };
-        let (robot, index, len) = cfg.mapping(&PR2_ARM).expect("valid");
+        let (robot, index, len) = cfg.mapping(arm()).expect("valid");
         assert_eq!(robot[6], "wrist_roll");
         assert_eq!(index, [6, 5, 4, 3, 2, 1, 0]);
         assert_eq!(len, 8);
@@ -510,50 +861,50 @@ mod tests {
 
     #[test]
     fn bad_configurations_are_named() {
-        let missing = Ros2ControlArmConfig {
+        let missing = Ros2ControlConfig {
             command_joints: vec!["a".into()],
-            ..Ros2ControlArmConfig::default()
+            ..Ros2ControlConfig::default()
         };
-        let e = missing.validate(&PR2_ARM).expect_err("joint missing");
+        let e = missing.validate_arm(&PR2_ARM).expect_err("joint missing");
         assert!(e.to_string().contains(PR2_ARM.joints[0]), "{e}");
-        let unknown = Ros2ControlArmConfig {
+        let unknown = Ros2ControlConfig {
             joint_names: [("elbow".to_owned(), "x".to_owned())].into(),
-            ..Ros2ControlArmConfig::default()
+            ..Ros2ControlConfig::default()
         };
         assert!(matches!(
-            unknown.validate(&PR2_ARM),
+            unknown.validate_arm(&PR2_ARM),
             Err(Ros2ControlConfigError::UnknownJoint(..))
         ));
-        let topic = Ros2ControlArmConfig {
+        let topic = Ros2ControlConfig {
             command_topic: "/a b/commands".into(),
-            ..Ros2ControlArmConfig::default()
+            ..Ros2ControlConfig::default()
         };
         assert!(matches!(
-            topic.validate(&PR2_ARM),
+            topic.validate_arm(&PR2_ARM),
             Err(Ros2ControlConfigError::Topic {
                 field: "command_topic",
                 ..
             })
         ));
-        let timeout = Ros2ControlArmConfig {
+        let timeout = Ros2ControlConfig {
             command_timeout_s: f64::NAN,
-            ..Ros2ControlArmConfig::default()
+            ..Ros2ControlConfig::default()
         };
         assert!(matches!(
-            timeout.validate(&PR2_ARM),
+            timeout.validate_arm(&PR2_ARM),
             Err(Ros2ControlConfigError::Duration { .. })
         ));
-        let twice = Ros2ControlArmConfig {
+        let twice = Ros2ControlConfig {
             command_joints: PR2_ARM
                 .joints
                 .iter()
                 .chain(&PR2_ARM.joints[..1])
                 .map(|s| (*s).to_owned())
                 .collect(),
-            ..Ros2ControlArmConfig::default()
+            ..Ros2ControlConfig::default()
         };
         assert!(matches!(
-            twice.validate(&PR2_ARM),
+            twice.validate_arm(&PR2_ARM),
             Err(Ros2ControlConfigError::DuplicateJoint(_))
         ));
     }

@@ -17,9 +17,14 @@ use teleop_bus::{Bus, BusConfig, Publisher};
 use teleop_hardware::safety::{
     ArmSafety, ArmSafetyConfig, HandLimits, HandSafety, HandSafetyConfig,
 };
-use teleop_hardware::{ArmCommand, ArmState, HardwareError};
-use teleop_hardware::{ArmHardware, HandHardware, SafeArm, SafeHand};
-use teleop_hardware_bus::{ArmEndpoint, HandEndpoint, Ros2ControlArm, Ros2ControlArmConfig};
+use teleop_hardware::{
+    ArmCommand, ArmHardware, ArmState, HandCommand, HandHardware, HandState, HardwareError,
+    SafeArm, SafeHand,
+};
+use teleop_hardware_bus::{
+    ArmEndpoint, HandEndpoint, Ros2ControlArm, Ros2ControlConfig, Ros2ControlHand,
+    Ros2ControlHandConfig,
+};
 use teleop_interfaces::hardware::{PR2_ARM, SHADOW_HAND};
 use teleop_interfaces::topics;
 use teleop_msgs::{Header, Image, Lifecycle, TFMessage, Transform, TransformStamped};
@@ -88,15 +93,15 @@ impl Default for SimSafetyConfig {
     }
 }
 
-/// What runs the PR2 arm.
+/// What runs a robot (the PR2 arm, the hand).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
-pub enum ArmBackendKind {
-    /// The simulated world's arm.
+pub enum BackendKind {
+    /// The simulated world's robot.
     Sim,
-    /// A robot run by ros2_control on ROS 2 (rmw_zenoh): a forward velocity controller
+    /// A robot run by ros2_control on ROS 2 (rmw_zenoh): a forward command controller
     /// and the joint state broadcaster (`teleop_hardware_bus::ros2_control`). The
-    /// world's own arm then stays where it is.
+    /// world's own robot then stays where it is.
     Ros2Control,
 }
 
@@ -104,16 +109,57 @@ pub enum ArmBackendKind {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ArmBackendConfig {
-    pub backend: ArmBackendKind,
-    /// Used when `backend = "ros2_control"`.
-    pub ros2_control: Ros2ControlArmConfig,
+    pub backend: BackendKind,
+    /// Used when `backend = "ros2_control"`: a forward velocity controller.
+    pub ros2_control: Ros2ControlConfig,
 }
 
 impl Default for ArmBackendConfig {
     fn default() -> Self {
         Self {
-            backend: ArmBackendKind::Sim,
-            ros2_control: Ros2ControlArmConfig::default(),
+            backend: BackendKind::Sim,
+            ros2_control: Ros2ControlConfig::default(),
+        }
+    }
+}
+
+/// The hand's backend, behind the same safety layer and endpoint either way.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct HandBackendConfig {
+    pub backend: BackendKind,
+    /// Used when `backend = "ros2_control"`: an effort or a position controller.
+    pub ros2_control: Ros2ControlHandConfig,
+}
+
+impl Default for HandBackendConfig {
+    fn default() -> Self {
+        Self {
+            backend: BackendKind::Sim,
+            ros2_control: Ros2ControlHandConfig::default(),
+        }
+    }
+}
+
+/// The hand's backend as the safety layer sees it.
+#[derive(Debug)]
+enum HandBackend {
+    Sim(SimHand<dyn RobotWorld>),
+    Ros2Control(Box<Ros2ControlHand>),
+}
+
+impl HandHardware for HandBackend {
+    fn read(&mut self, now_s: f64) -> Result<HandState, HardwareError> {
+        match self {
+            HandBackend::Sim(h) => h.read(now_s),
+            HandBackend::Ros2Control(h) => h.read(now_s),
+        }
+    }
+
+    fn write(&mut self, now_s: f64, command: &HandCommand) -> Result<(), HardwareError> {
+        match self {
+            HandBackend::Sim(h) => h.write(now_s, command),
+            HandBackend::Ros2Control(h) => h.write(now_s, command),
         }
     }
 }
@@ -170,6 +216,8 @@ pub struct SimNodeConfig {
     /// What runs the PR2 arm: the simulated world's (default) or a ROS 2 robot's
     /// ros2_control.
     pub pr2_arm: ArmBackendConfig,
+    /// What runs the hand: the simulated world's (default) or ros2_control.
+    pub shadow_hand: HandBackendConfig,
     /// The process's scheduling (normal, or real-time FIFO at a priority).
     pub scheduling: SchedulingConfig,
     pub bus: BusConfig,
@@ -193,6 +241,7 @@ impl Default for SimNodeConfig {
             cameras: CameraViewsConfig::default(),
             safety: SimSafetyConfig::default(),
             pr2_arm: ArmBackendConfig::default(),
+            shadow_hand: HandBackendConfig::default(),
             scheduling: SchedulingConfig::default(),
             bus: BusConfig::default(),
         }
@@ -238,11 +287,17 @@ impl NodeConfig for SimNodeConfig {
         if self.scene == SceneKind::Pick {
             self.pick.job_config().map_err(|e| e.to_string())?;
         }
-        if self.pr2_arm.backend == ArmBackendKind::Ros2Control {
+        if self.pr2_arm.backend == BackendKind::Ros2Control {
             self.pr2_arm
                 .ros2_control
-                .validate(&PR2_ARM)
+                .validate_arm(&PR2_ARM)
                 .map_err(|e| format!("pr2_arm.{e}"))?;
+        }
+        if self.shadow_hand.backend == BackendKind::Ros2Control {
+            self.shadow_hand
+                .ros2_control
+                .validate(&SHADOW_HAND)
+                .map_err(|e| format!("shadow_hand.{e}"))?;
         }
         Ok(())
     }
@@ -317,7 +372,8 @@ pub struct SimNode {
     arm: SafeArm<7, ArmBackend>,
     /// Refused ros2_control joint states already reported.
     arm_bad_states_seen: u64,
-    hand: SafeHand<SimHand<dyn RobotWorld>>,
+    hand_bad_states_seen: u64,
+    hand: SafeHand<HandBackend>,
     arm_endpoint: ArmEndpoint<7>,
     hand_endpoint: HandEndpoint,
     cameras: Option<CameraViews>,
@@ -357,10 +413,15 @@ impl SimNode {
             (cameras, w.time_s())
         };
         let cameras = CameraViews::open(bus, scene_cameras).await?;
-        let sim_hand = SimHand::new(world.clone());
+        let hand_backend = match cfg.shadow_hand.backend {
+            BackendKind::Sim => HandBackend::Sim(SimHand::new(world.clone())),
+            BackendKind::Ros2Control => HandBackend::Ros2Control(Box::new(
+                Ros2ControlHand::new(bus, &SHADOW_HAND, &cfg.shadow_hand.ros2_control).await?,
+            )),
+        };
         let arm_backend = match cfg.pr2_arm.backend {
-            ArmBackendKind::Sim => ArmBackend::Sim(SimArm::new(world.clone())),
-            ArmBackendKind::Ros2Control => ArmBackend::Ros2Control(Box::new(
+            BackendKind::Sim => ArmBackend::Sim(SimArm::new(world.clone())),
+            BackendKind::Ros2Control => ArmBackend::Ros2Control(Box::new(
                 Ros2ControlArm::new(bus, &PR2_ARM, &cfg.pr2_arm.ros2_control).await?,
             )),
         };
@@ -380,7 +441,8 @@ impl SimNode {
             world,
             arm: SafeArm::new(arm_backend, arm_safety),
             arm_bad_states_seen: 0,
-            hand: SafeHand::new(sim_hand, hand_safety),
+            hand: SafeHand::new(hand_backend, hand_safety),
+            hand_bad_states_seen: 0,
             arm_endpoint: ArmEndpoint::new(bus, &PR2_ARM, &cfg.safety.arm_controller_node).await?,
             hand_endpoint: HandEndpoint::new(bus, &SHADOW_HAND, &cfg.safety.hand_controller_node)
                 .await?,
@@ -529,7 +591,22 @@ impl Node for SimNode {
                 self.fail("arm state", e, now_s);
             }
         }
-        match self.hand_endpoint.publish_state(&hand_state) {
+        let hand_state = match self.hand.backend() {
+            HandBackend::Sim(_) => Ok(hand_state),
+            HandBackend::Ros2Control(_) => self.hand.read(now_s),
+        };
+        if let HandBackend::Ros2Control(r) = self.hand.backend()
+            && r.bad_states() > self.hand_bad_states_seen
+        {
+            self.hand_bad_states_seen = r.bad_states();
+            let text = r.newest_refusal().unwrap_or_default().to_owned();
+            self.errors.event("hand joint state", text, now_s);
+        }
+        match hand_state.and_then(|s| {
+            self.hand_endpoint
+                .publish_state(&s)
+                .map_err(|e| HardwareError::Fault(e.to_string()))
+        }) {
             Ok(()) => self.works("hand state", now_s),
             Err(e) => {
                 serving = false;
@@ -578,6 +655,9 @@ impl Node for SimNode {
         out.extend(self.arm.safety().counters().named("safety.arm"));
         if let ArmBackend::Ros2Control(r) = self.arm.backend() {
             out.extend(r.counters("pr2_arm.ros2_control"));
+        }
+        if let HandBackend::Ros2Control(r) = self.hand.backend() {
+            out.extend(r.counters("shadow_hand.ros2_control"));
         }
         out.extend(self.hand.safety().counters().named("safety.hand"));
         out

@@ -359,6 +359,12 @@ impl<B: HandHardware> SafeHand<B> {
         Self { backend, safety }
     }
 
+    /// The wrapped backend, read-only (its own counters): commands reach it only
+    /// through the filter.
+    pub fn backend(&self) -> &B {
+        &self.backend
+    }
+
     /// The filter (limits, counters).
     pub fn safety(&self) -> &HandSafety {
         &self.safety
