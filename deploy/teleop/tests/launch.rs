@@ -1208,9 +1208,10 @@ fn spawn_teleop(args: &[&str]) -> std::process::Child {
         .unwrap_or_else(|e| panic!("start teleop {args:?}: {e}"))
 }
 
-/// A ROS 2 graph tool nobody here wrote, `zenoh-ros2 topic list -t` (ROBOTIS's
-/// `zenoh-ros2-sdk`, PyPI), reads the running system's liveliness tokens and lists every
-/// topic of the topic table with its ROS 2 type, and nothing else.
+/// A ROS 2 graph tool nobody here wrote, ROBOTIS's `zenoh-ros2-sdk` (PyPI; its
+/// `topic list -t` discovery, through `tests/interop/graph_oracle.py`), reads the running
+/// system's liveliness tokens and lists every topic of the topic table with its ROS 2
+/// type, and nothing else.
 #[test]
 fn a_ros2_graph_tool_lists_every_topic_of_a_running_system_with_its_type() {
     let _one = one_system();
@@ -1218,10 +1219,10 @@ fn a_ros2_graph_tool_lists_every_topic_of_a_running_system_with_its_type() {
     let mut system = Command::new(env!("CARGO_BIN_EXE_teleop"))
         .args([
             "--domain-id",
-            "92",
+            "88",
             "launch",
             "--duration-s",
-            "20",
+            "60",
             "--quiet",
         ])
         .arg("--no-report-files")
@@ -1233,42 +1234,49 @@ fn a_ros2_graph_tool_lists_every_topic_of_a_running_system_with_its_type() {
         .iter()
         .map(|t| format!("/{} [{}]", t.name, t.type_name))
         .collect();
-    // The nodes need a few seconds to start; ask until the whole table is there.
+    // The nodes need a few seconds to start, and the tool, a peer among peers without
+    // a router, lists the tokens of the peers it has reached: ask until every topic of
+    // the table has been listed, and never anything else.
     let mut listed = std::collections::BTreeSet::new();
+    let mut extra = std::collections::BTreeSet::new();
     let started = std::time::Instant::now();
-    while listed != expected && started.elapsed() < std::time::Duration::from_secs(15) {
+    while listed != expected && started.elapsed() < std::time::Duration::from_secs(45) {
         std::thread::sleep(std::time::Duration::from_secs(2));
         let out = Command::new(&python)
-            .args([
-                "-c",
-                "import sys; from zenoh_ros2_sdk.cli import main; sys.exit(main())",
-            ])
-            .args(["--domain-id", "92", "--no-daemon", "--timeout", "2"])
-            .args(["topic", "list", "-t"])
-            // Its own session config is rmw_zenoh's (a router on 7447); here it finds
-            // the peers as they find each other: multicast scouting on loopback.
-            .env(
-                "ZENOH_CONFIG_OVERRIDE",
-                "connect/endpoints=[];scouting/multicast/enabled=true;\
-                 scouting/multicast/interface=\"lo\"",
-            )
+            .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/interop/graph_oracle.py"))
+            .args(["88", "5"])
             .output()
-            .expect("run zenoh-ros2 (pip install -r tests/interop/requirements.txt)");
+            .expect("run the graph oracle (pip install -r tests/interop/requirements.txt)");
         assert!(
             out.status.success(),
-            "zenoh-ros2 topic list failed: {}",
+            "the graph oracle failed: {}",
             String::from_utf8_lossy(&out.stderr)
         );
-        listed = String::from_utf8_lossy(&out.stdout)
+        let poll: std::collections::BTreeSet<String> = String::from_utf8_lossy(&out.stdout)
             .lines()
             .map(|l| l.trim().to_owned())
             .filter(|l| !l.is_empty())
             .collect();
+        eprintln!(
+            "zenoh-ros2-sdk topic list at {:.1} s: {} of the table's {} topics, {} others",
+            started.elapsed().as_secs_f64(),
+            poll.intersection(&expected).count(),
+            expected.len(),
+            poll.difference(&expected).count()
+        );
+        extra.extend(poll.difference(&expected).cloned());
+        listed.extend(poll.intersection(&expected).cloned());
     }
-    let _ = system.kill();
-    let _ = system.wait();
+    // Stopped as by Ctrl-C: the launcher stops its nodes (killing it would leave them
+    // running).
+    let stopped = Command::new("kill")
+        .args(["-INT", &system.id().to_string()])
+        .status()
+        .expect("run kill");
+    assert!(stopped.success());
+    let status = system.wait().expect("teleop launch ends");
+    assert!(status.success(), "teleop launch: {status}");
     let missing: Vec<&String> = expected.difference(&listed).collect();
-    let extra: Vec<&String> = listed.difference(&expected).collect();
     assert!(
         missing.is_empty() && extra.is_empty(),
         "the graph tool's list differs from the topic table: missing {missing:#?}, \
