@@ -18,7 +18,7 @@ use teleop_msgs::{
     JointState, Message, MultiArrayDimension, MultiArrayLayout, NodeStatus, OperatorInput, Point,
     Pose, PoseStamped, Quaternion, TFMessage, Time, Transform, TransformStamped, Vector3,
 };
-use teleop_system_tests::{free_port, pyzeros_python, repo_root};
+use teleop_system_tests::{free_port, isolated_pair, pyzeros_python, repo_root, said_ready};
 
 const INSTALL_HINT: &str = "install the interop packages with `pip install -r \
      tests/interop/requirements.txt`, or point TELEOP_PYTHON at a Python that has them";
@@ -303,4 +303,124 @@ async fn pyzeros_decodes_every_topic_type_with_the_values_sent() {
             "{topic}: decoded values differ from those sent"
         );
     }
+}
+
+/// ROS 2 nodes on pyzeros as the operator station (`tests/interop/pyzeros_operator.py`:
+/// nodes `wrist_tracker` and `hand_inference`) drive the robot site: the PR2 arm
+/// controller (the shipped node's code, ticked here) engages on their pedals and moves
+/// the simulated arm with their wrist pose; their publishers are identified by the bus's
+/// publisher directory (GIDs as rmw_zenoh computes them) as the `wrist_tracker` node's.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn ros2_nodes_on_pyzeros_as_the_operator_station_drive_the_arm() {
+    use teleop_interfaces::topics;
+    use teleop_node::Node;
+    use teleop_remote_site::arm_node::{ArmNode, ArmNodeConfig};
+    use teleop_sim_nodes::remote_sim::{Engine, SceneKind, SimNode, SimNodeConfig};
+
+    let domain = 86;
+    let port = free_port().unwrap();
+    let (hub, spoke) = isolated_pair(domain, port);
+    let sim_cfg = {
+        let mut c = SimNodeConfig {
+            scene: SceneKind::Free,
+            engine: Engine::JointSpace,
+            bus: hub.clone(),
+            ..SimNodeConfig::default()
+        };
+        c.cameras.enabled = false;
+        // The working posture (the default rests at the elbow's limit).
+        c.world.arm.initial_position_rad = teleop_sim::WORKING_POSTURE_RAD;
+        c
+    };
+    let sim_bus = Bus::open("remote_sim", &hub).await.unwrap();
+    let mut sim = SimNode::new(&sim_cfg, &sim_bus).await.unwrap();
+    let arm_cfg = ArmNodeConfig {
+        bus: spoke.clone(),
+        ..ArmNodeConfig::default()
+    };
+    let arm_bus = Bus::open("pr2_arm_controller", &spoke).await.unwrap();
+    let mut arm = ArmNode::new(&arm_cfg, &arm_bus).await.unwrap();
+    // The hand's controller, alive (the arm moves only while the hand's nodes are).
+    let _hand = Bus::open("shadow_hand_controller", &spoke).await.unwrap();
+    let watcher = Bus::open("interop_watcher", &spoke).await.unwrap();
+    let poses = watcher.subscriber(&topics::WRIST_POSE).await.unwrap();
+
+    let script = repo_root().join("tests/interop/pyzeros_operator.py");
+    let mut child = pyzeros_python(script.to_str().unwrap())
+        .args(["--connect", &format!("tcp/127.0.0.1:{port}")])
+        .args(["--domain", &domain.to_string(), "--duration-s", "7"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap_or_else(|e| panic!("cannot run the interop Python ({e}) => {INSTALL_HINT}"));
+    let stdout = child.stdout.take().unwrap();
+    assert!(
+        said_ready(stdout).await,
+        "the station did not say ready within 300 s => {INSTALL_HINT}"
+    );
+    let q0 = sim.world().lock().unwrap().arm_state().position_rad;
+    // The robot site runs while the station's script does (the arm at 30 Hz, the
+    // simulator at 100 Hz).
+    let mut senders = std::collections::BTreeSet::new();
+    let started = Instant::now();
+    let mut k = 0u64;
+    while started.elapsed() < Duration::from_secs(40) {
+        let now = sim_bus.now_s();
+        sim.tick(now);
+        if k.is_multiple_of(3) {
+            arm.tick(now);
+        }
+        while let Some(r) = poses.try_recv() {
+            if let Some(info) = poses.publisher_info(&r.publisher_gid) {
+                senders.insert(info.node_name);
+            }
+        }
+        k += 1;
+        if matches!(child.try_wait(), Ok(Some(_))) {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    let q1 = sim.world().lock().unwrap().arm_state().position_rad;
+    let counter = |name: &str| {
+        arm.counters()
+            .into_iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v)
+            .unwrap_or_else(|| panic!("counter {name}"))
+    };
+    let nonzero: Vec<(String, u64)> = arm.counters().into_iter().filter(|(_, v)| *v > 0).collect();
+    assert_eq!(
+        counter("arm.engagements"),
+        1,
+        "{}; {nonzero:?}",
+        arm.last_error()
+    );
+    // The station moved the wrist 0.10 m along x: the palm follows (relative control,
+    // operator and robot frames aligned).
+    let chain = teleop_kinematics::robots::pr2_arm_chain().unwrap();
+    let palm = |q: nalgebra::SVector<f64, 7>| chain.end_pose(&q).translation.vector;
+    let moved = palm(q1) - palm(q0);
+    assert!(
+        (0.09..0.11).contains(&moved.x) && moved.yz().norm() < 0.01,
+        "the palm moved {moved:?} m for the wrist's 0.10 m along x: {}; simulator: {:?}",
+        arm.last_error(),
+        sim.counters()
+            .into_iter()
+            .filter(|(n, v)| *v > 0 && n.starts_with("pr2_arm") || n.starts_with("safety.arm"))
+            .collect::<Vec<_>>()
+    );
+    eprintln!(
+        "pyzeros operator station: the palm moved {:.4} m along x ({:.4} m across) for the \
+         wrist's 0.10 m",
+        moved.x,
+        moved.yz().norm()
+    );
+    assert_eq!(
+        senders.into_iter().collect::<Vec<_>>(),
+        vec!["wrist_tracker".to_owned()],
+        "the ROS 2 node's publisher, identified by its GID"
+    );
 }

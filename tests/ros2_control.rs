@@ -17,7 +17,7 @@
 //! taken.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use std::io::{BufRead, BufReader, Write};
+use std::io::Write;
 use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
 
@@ -31,7 +31,7 @@ use teleop_msgs::{JointState, Lifecycle, Message};
 use teleop_node::Node;
 use teleop_sim::WORKING_POSTURE_RAD;
 use teleop_sim_nodes::remote_sim::{BackendKind, Engine, SceneKind, SimNode, SimNodeConfig};
-use teleop_system_tests::{free_port, pyzeros_python, repo_root};
+use teleop_system_tests::{free_port, pyzeros_python, repo_root, said_ready};
 
 const INSTALL_HINT: &str = "install the interop packages with `pip install -r \
      tests/interop/requirements.txt`, or point TELEOP_PYTHON at a Python that has them";
@@ -61,18 +61,9 @@ impl StandIn {
             .unwrap_or_else(|e| panic!("cannot start the stand-in ({e}) => {INSTALL_HINT}"));
         let stdout = child.stdout.take().unwrap();
         let standin = StandIn(child);
-        let ready = tokio::task::spawn_blocking(move || {
-            BufReader::new(stdout)
-                .lines()
-                .map_while(Result::ok)
-                .any(|l| l.trim() == "ready")
-        });
         assert!(
-            tokio::time::timeout(Duration::from_secs(300), ready)
-                .await
-                .expect("the stand-in said ready within 300 s")
-                .unwrap(),
-            "the stand-in exited before it was ready"
+            said_ready(stdout).await,
+            "the stand-in did not say ready within 300 s => {INSTALL_HINT}"
         );
         standin
     }

@@ -2,8 +2,8 @@
 ROS 2 client on Zenoh, PyPI), for tests/ros2_clients.rs.
 
 The standard types come from ros2_pyterfaces; the project's own `.msg` types
-(shared/msgs/msg/) and tf2_msgs/TFMessage (not in ros2_pyterfaces) are defined here,
-on pyzeros's side, from their ROS 2 definitions. pyzeros subscribes with its own type
+(shared/msgs/msg/) and tf2_msgs/TFMessage (not in ros2_pyterfaces) are defined on
+pyzeros's side from their ROS 2 definitions (pyzeros_types.py). pyzeros subscribes with its own type
 hashes in the rmw_zenoh data keys, so a sample arrives only where its hash equals the
 project's.
 
@@ -18,62 +18,20 @@ import json
 import sys
 import threading
 import time
-from dataclasses import dataclass, field
-
 import numpy as np
 import zenoh
 import pyzeros
-from ros2_pyterfaces.cyclone.idl import IdlStruct, types
 from ros2_pyterfaces.cyclone.std_msgs.msg import Header, Float64MultiArray
-from ros2_pyterfaces.cyclone.geometry_msgs.msg import PoseStamped, TransformStamped
+from ros2_pyterfaces.cyclone.geometry_msgs.msg import PoseStamped
 from ros2_pyterfaces.cyclone.sensor_msgs.msg import JointState, Image, CompressedImage
 
-
-@dataclass
-class TFMessage(IdlStruct, typename="tf2_msgs/msg/TFMessage"):
-    transforms: types.sequence[TransformStamped] = field(default_factory=list)
-
-
-@dataclass
-class OperatorInput(IdlStruct, typename="teleop_msgs/msg/OperatorInput"):
-    header: Header = field(default_factory=Header)
-    clutch: bool = False
-    enable: bool = False
-    camera_stop: bool = False
-    motion_scale: types.float64 = 1.0
-
-
-@dataclass
-class FingertipPressures(IdlStruct, typename="teleop_msgs/msg/FingertipPressures"):
-    header: Header = field(default_factory=Header)
-    ff: types.float64 = 0.0
-    mf: types.float64 = 0.0
-    rf: types.float64 = 0.0
-    lf: types.float64 = 0.0
-    th: types.float64 = 0.0
-
-
-@dataclass
-class JointCommand(IdlStruct, typename="teleop_msgs/msg/JointCommand"):
-    header: Header = field(default_factory=Header)
-    mode: str = ""
-    name: types.sequence[str] = field(default_factory=list)
-    position: types.sequence[types.float64] = field(default_factory=list)
-    velocity: types.sequence[types.float64] = field(default_factory=list)
-    effort: types.sequence[types.float64] = field(default_factory=list)
-    stiffness: types.sequence[types.float64] = field(default_factory=list)
-    damping: types.sequence[types.float64] = field(default_factory=list)
-    max_effort: types.sequence[types.float64] = field(default_factory=list)
-
-
-@dataclass
-class NodeStatus(IdlStruct, typename="teleop_msgs/msg/NodeStatus"):
-    header: Header = field(default_factory=Header)
-    node_name: str = ""
-    lifecycle_state: types.uint8 = 0
-    counter_names: types.sequence[str] = field(default_factory=list)
-    counter_values: types.sequence[types.uint64] = field(default_factory=list)
-    last_error: str = ""
+from pyzeros_types import (
+    FingertipPressures,
+    JointCommand,
+    NodeStatus,
+    OperatorInput,
+    TFMessage,
+)
 
 
 TYPES = {

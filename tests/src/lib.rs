@@ -30,6 +30,23 @@ pub fn pyzeros_python(script: &str) -> std::process::Command {
     command
 }
 
+/// Whether a script's standard output says `ready` (on a line of its own) within 300 s
+/// (pyzeros may compile its serializers first); `false` when it ends before or the time
+/// runs out.
+pub async fn said_ready(stdout: std::process::ChildStdout) -> bool {
+    use std::io::BufRead;
+    let ready = tokio::task::spawn_blocking(move || {
+        std::io::BufReader::new(stdout)
+            .lines()
+            .map_while(Result::ok)
+            .any(|l| l.trim() == "ready")
+    });
+    matches!(
+        tokio::time::timeout(std::time::Duration::from_secs(300), ready).await,
+        Ok(Ok(true))
+    )
+}
+
 /// The wrist tracker's in-process devices, driven by one simulated operator: the pedals,
 /// and the wrist pose source too when `tracker` (set `[source]` to
 /// `TrackerSource::InProcess` then). The node's library does not link the simulator;
