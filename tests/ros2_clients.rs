@@ -11,14 +11,16 @@ use std::process::Stdio;
 use std::time::{Duration, Instant};
 
 use serde::Serialize;
-use teleop_bus::{Bus, BusConfig, ZenohSettings};
+use teleop_bus::Bus;
 use teleop_interfaces::{Direction, Publishers, QosClass, Topic};
 use teleop_msgs::{
     CompressedImage, FingertipPressures, Float64MultiArray, Header, Image, JointCommand,
     JointState, Message, MultiArrayDimension, MultiArrayLayout, NodeStatus, OperatorInput, Point,
     Pose, PoseStamped, Quaternion, TFMessage, Time, Transform, TransformStamped, Vector3,
 };
-use teleop_system_tests::{free_port, isolated_pair, pyzeros_python, repo_root, said_ready};
+use teleop_system_tests::{
+    bare_sim_config, free_port, isolated_pair, pyzeros_python, repo_root, said_ready,
+};
 
 const INSTALL_HINT: &str = "install the interop packages with `pip install -r \
      tests/interop/requirements.txt`, or point TELEOP_PYTHON at a Python that has them";
@@ -67,20 +69,9 @@ async fn sender<T: Message + Serialize>(bus: &Bus, name: &'static str, msg: T) -
 async fn pyzeros_decodes_every_topic_type_with_the_values_sent() {
     let domain = 84;
     let port = free_port().unwrap();
-    let bus = Bus::open(
-        "interop_sender",
-        &BusConfig {
-            domain_id: domain,
-            zenoh: ZenohSettings {
-                listen: vec![format!("tcp/127.0.0.1:{port}")],
-                multicast_scouting: false,
-                ..Default::default()
-            },
-            ..Default::default()
-        },
-    )
-    .await
-    .unwrap();
+    let bus = Bus::open("interop_sender", &isolated_pair(domain, port).0)
+        .await
+        .unwrap();
     let pose = |k: f64| Pose {
         position: Point {
             x: 0.1 * k,
@@ -315,23 +306,14 @@ async fn ros2_nodes_on_pyzeros_as_the_operator_station_drive_the_arm() {
     use teleop_interfaces::topics;
     use teleop_node::Node;
     use teleop_remote_site::arm_node::{ArmNode, ArmNodeConfig};
-    use teleop_sim_nodes::remote_sim::{Engine, SceneKind, SimNode, SimNodeConfig};
+    use teleop_sim_nodes::remote_sim::SimNode;
 
     let domain = 86;
     let port = free_port().unwrap();
     let (hub, spoke) = isolated_pair(domain, port);
-    let sim_cfg = {
-        let mut c = SimNodeConfig {
-            scene: SceneKind::Free,
-            engine: Engine::JointSpace,
-            bus: hub.clone(),
-            ..SimNodeConfig::default()
-        };
-        c.cameras.enabled = false;
-        // The working posture (the default rests at the elbow's limit).
-        c.world.arm.initial_position_rad = teleop_sim::WORKING_POSTURE_RAD;
-        c
-    };
+    let mut sim_cfg = bare_sim_config(hub.clone());
+    // The working posture (the default rests at the elbow's limit).
+    sim_cfg.world.arm.initial_position_rad = teleop_sim::WORKING_POSTURE_RAD;
     let sim_bus = Bus::open("remote_sim", &hub).await.unwrap();
     let mut sim = SimNode::new(&sim_cfg, &sim_bus).await.unwrap();
     let arm_cfg = ArmNodeConfig {

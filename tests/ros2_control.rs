@@ -22,7 +22,7 @@ use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
 
 use nalgebra::SVector;
-use teleop_bus::{Bus, BusConfig, Publisher, Subscriber, ZenohSettings};
+use teleop_bus::{Bus, Publisher, Subscriber};
 use teleop_hardware::safety::ArmSafety;
 use teleop_hardware::{ArmCommand, ArmState, wire};
 use teleop_interfaces::joints::PR2_ARM_JOINTS;
@@ -30,8 +30,10 @@ use teleop_interfaces::topics;
 use teleop_msgs::{JointState, Lifecycle, Message};
 use teleop_node::Node;
 use teleop_sim::WORKING_POSTURE_RAD;
-use teleop_sim_nodes::remote_sim::{BackendKind, Engine, SceneKind, SimNode, SimNodeConfig};
-use teleop_system_tests::{free_port, pyzeros_python, repo_root, said_ready};
+use teleop_sim_nodes::remote_sim::{BackendKind, SimNode};
+use teleop_system_tests::{
+    bare_sim_config, free_port, isolated_pair, pyzeros_python, repo_root, said_ready,
+};
 
 const INSTALL_HINT: &str = "install the interop packages with `pip install -r \
      tests/interop/requirements.txt`, or point TELEOP_PYTHON at a Python that has them";
@@ -66,19 +68,6 @@ impl StandIn {
             "the stand-in did not say ready within 300 s => {INSTALL_HINT}"
         );
         standin
-    }
-}
-
-fn bus_config(domain_id: u32, connect: &str) -> BusConfig {
-    BusConfig {
-        domain_id,
-        zenoh: ZenohSettings {
-            listen: vec!["tcp/127.0.0.1:0".into()],
-            connect: vec![connect.to_owned()],
-            multicast_scouting: false,
-            ..Default::default()
-        },
-        ..Default::default()
     }
 }
 
@@ -170,19 +159,13 @@ async fn the_robot_site_drives_a_ros2_control_arm_within_its_limits() {
     )
     .await;
 
-    let mut cfg = SimNodeConfig {
-        scene: SceneKind::Free,
-        engine: Engine::JointSpace,
-        bus: bus_config(domain, &endpoint),
-        ..SimNodeConfig::default()
-    };
-    cfg.cameras.enabled = false;
+    let mut cfg = bare_sim_config(isolated_pair(domain, port).1);
     cfg.pr2_arm.backend = BackendKind::Ros2Control;
     cfg.pr2_arm.ros2_control.command_joints = controller_joints.clone();
     teleop_node::NodeConfig::validate(&cfg).unwrap();
     let sim_bus = Bus::open("remote_sim", &cfg.bus).await.unwrap();
     let mut sim = SimNode::new(&cfg, &sim_bus).await.unwrap();
-    let ctrl_bus = Bus::open("pr2_arm_controller", &bus_config(domain, &endpoint))
+    let ctrl_bus = Bus::open("pr2_arm_controller", &isolated_pair(domain, port).1)
         .await
         .unwrap();
     let command_pub = ctrl_bus
@@ -338,7 +321,6 @@ async fn the_robot_site_drives_a_ros2_control_hand_by_position_within_its_limits
     use teleop_hardware::HandCommand;
     use teleop_hardware::safety::HandLimits;
     use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
-    use teleop_sim_nodes::remote_sim::BackendKind;
 
     let domain = 85;
     let port = free_port().unwrap();
@@ -384,13 +366,7 @@ async fn the_robot_site_drives_a_ros2_control_hand_by_position_within_its_limits
     )
     .await;
 
-    let mut cfg = SimNodeConfig {
-        scene: SceneKind::Free,
-        engine: Engine::JointSpace,
-        bus: bus_config(domain, &endpoint),
-        ..SimNodeConfig::default()
-    };
-    cfg.cameras.enabled = false;
+    let mut cfg = bare_sim_config(isolated_pair(domain, port).1);
     cfg.shadow_hand.backend = BackendKind::Ros2Control;
     cfg.shadow_hand.ros2_control.mode = teleop_hardware_bus::HandControllerMode::Position;
     cfg.shadow_hand.ros2_control.ros2_control.command_topic =
@@ -399,7 +375,7 @@ async fn the_robot_site_drives_a_ros2_control_hand_by_position_within_its_limits
     teleop_node::NodeConfig::validate(&cfg).unwrap();
     let sim_bus = Bus::open("remote_sim", &cfg.bus).await.unwrap();
     let mut sim = SimNode::new(&cfg, &sim_bus).await.unwrap();
-    let ctrl_bus = Bus::open("shadow_hand_controller", &bus_config(domain, &endpoint))
+    let ctrl_bus = Bus::open("shadow_hand_controller", &isolated_pair(domain, port).1)
         .await
         .unwrap();
     let command_pub = ctrl_bus.publisher(&topics::HW_HAND_COMMAND).await.unwrap();

@@ -15,6 +15,21 @@ pub fn repo_root() -> PathBuf {
 
 pub use teleop_bus::testing::{free_port, isolated_pair};
 
+/// The robot site's simulator node's configuration for a test beside another robot
+/// stack: the arm and the hand alone (no objects) on the joint-space engine, no camera
+/// views, on `bus`.
+pub fn bare_sim_config(bus: teleop_bus::BusConfig) -> teleop_sim_nodes::remote_sim::SimNodeConfig {
+    use teleop_sim_nodes::remote_sim::{Engine, SceneKind, SimNodeConfig};
+    let mut cfg = SimNodeConfig {
+        scene: SceneKind::Free,
+        engine: Engine::JointSpace,
+        bus,
+        ..SimNodeConfig::default()
+    };
+    cfg.cameras.enabled = false;
+    cfg
+}
+
 /// A command running `script` with the Python of the interop tests (`$TELEOP_PYTHON`,
 /// else `python3`), for the scripts on pyzeros: it compiles its serializers once into
 /// `$CYDR_CACHE_DIR`, by default `~/.cache/teleop-cydr` (outside the clone, reused

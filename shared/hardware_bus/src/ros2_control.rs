@@ -22,8 +22,8 @@
 //! the process that owns it; what they add is the mapping and the zero-on-silence.
 
 use std::collections::BTreeMap;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use nalgebra::SVector;
@@ -99,6 +99,26 @@ pub enum Ros2ControlConfigError {
     Duration { field: &'static str, value: f64 },
 }
 
+/// `value` must be a ROS 2 topic name (slash-separated parts of letters, digits and `_`,
+/// none starting with a digit).
+fn check_topic(field: &'static str, value: &str) -> Result<(), Ros2ControlConfigError> {
+    let name = value.trim_matches('/');
+    let valid = !name.is_empty()
+        && name.split('/').all(|part| {
+            !part.is_empty()
+                && part.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+                && !part.starts_with(|c: char| c.is_ascii_digit())
+        });
+    if valid {
+        Ok(())
+    } else {
+        Err(Ros2ControlConfigError::Topic {
+            field,
+            value: value.to_owned(),
+        })
+    }
+}
+
 /// An interface's name and joints.
 #[derive(Debug, Clone, Copy)]
 struct Joints<'a, const N: usize> {
@@ -113,24 +133,8 @@ impl Ros2ControlConfig {
         &self,
         interface: Joints<'_, N>,
     ) -> Result<([String; N], [usize; N], usize), Ros2ControlConfigError> {
-        for (field, value) in [
-            ("command_topic", &self.command_topic),
-            ("state_topic", &self.state_topic),
-        ] {
-            let name = value.trim_matches('/');
-            let valid = !name.is_empty()
-                && name.split('/').all(|part| {
-                    !part.is_empty()
-                        && part.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
-                        && !part.starts_with(|c: char| c.is_ascii_digit())
-                });
-            if !valid {
-                return Err(Ros2ControlConfigError::Topic {
-                    field,
-                    value: value.clone(),
-                });
-            }
-        }
+        check_topic("command_topic", &self.command_topic)?;
+        check_topic("state_topic", &self.state_topic)?;
         for (field, value) in [
             ("stale_after_s", self.stale_after_s),
             ("command_timeout_s", self.command_timeout_s),
@@ -293,7 +297,9 @@ struct Link<const N: usize> {
     previous: Option<(SVector<f64, N>, f64)>,
     stale_after_s: f64,
     bad_states: u64,
-    newest_refusal: Option<String>,
+    /// The newest refusal's text not yet taken by the owner ([`Ros2ControlArm::take_refusal`]).
+    /// Behind a lock: taken through the safety layer's read-only view of the backend.
+    newest_refusal: Mutex<Option<String>>,
 }
 
 impl<const N: usize> Link<N> {
@@ -370,7 +376,7 @@ impl<const N: usize> Link<N> {
             previous: None,
             stale_after_s: cfg.stale_after_s,
             bad_states: 0,
-            newest_refusal: None,
+            newest_refusal: Mutex::new(None),
         })
     }
 
@@ -406,6 +412,21 @@ impl<const N: usize> Link<N> {
         })
     }
 
+    /// Keeps `text` as the newest refusal.
+    fn refused(&mut self, text: String) {
+        *self
+            .newest_refusal
+            .get_mut()
+            .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(text);
+    }
+
+    fn take_refusal(&self) -> Option<String> {
+        self.newest_refusal
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .take()
+    }
+
     /// Takes the joint states that arrived; the newest fresh one.
     fn read(&mut self, now_s: f64) -> Result<Measured<N>, HardwareError> {
         while let Some(r) = self.state.try_recv() {
@@ -415,7 +436,7 @@ impl<const N: usize> Link<N> {
                     self.bad_states += 1;
                     let text = format!("{} joint state from ros2_control refused: {e}", self.name);
                     tracing::debug!("{text}");
-                    self.newest_refusal = Some(text);
+                    self.refused(text);
                 }
             }
         }
@@ -545,19 +566,10 @@ impl<const N: usize> Ros2ControlArm<N> {
         })
     }
 
-    /// Joint states that could not be used (a joint missing, lengths, NaN).
-    pub fn bad_states(&self) -> u64 {
-        self.link.bad_states
-    }
-
-    /// Zero-velocity commands the watchdog sent because no command was written.
-    pub fn watchdog_stops(&self) -> u64 {
-        self.link.watch.zeros_sent.load(Ordering::Relaxed)
-    }
-
-    /// Why the newest refused joint state was refused.
-    pub fn newest_refusal(&self) -> Option<&str> {
-        self.link.newest_refusal.as_deref()
+    /// The newest refused joint state's reason since the last call, once (as the
+    /// hardware endpoints hand over theirs); through the safety layer's read-only view.
+    pub fn take_refusal(&self) -> Option<String> {
+        self.link.take_refusal()
     }
 
     /// Counters for the owning node's status, under `prefix`.
@@ -630,18 +642,7 @@ impl Ros2ControlHandConfig {
     pub fn validate(&self, interface: &HandInterface) -> Result<(), Ros2ControlConfigError> {
         self.ros2_control.validate_hand(interface)?;
         if !self.tactile_topic.is_empty() {
-            Ros2ControlConfig {
-                state_topic: self.tactile_topic.clone(),
-                ..self.ros2_control.clone()
-            }
-            .validate_hand(interface)
-            .map_err(|e| match e {
-                Ros2ControlConfigError::Topic { value, .. } => Ros2ControlConfigError::Topic {
-                    field: "tactile_topic",
-                    value,
-                },
-                other => other,
-            })?;
+            check_topic("tactile_topic", &self.tactile_topic)?;
         }
         Ok(())
     }
@@ -671,7 +672,9 @@ impl Ros2ControlHand {
         interface: &HandInterface,
         cfg: &Ros2ControlHandConfig,
     ) -> Result<Self, Ros2ControlError> {
-        cfg.validate(interface)?;
+        if !cfg.tactile_topic.is_empty() {
+            check_topic("tactile_topic", &cfg.tactile_topic)?;
+        }
         let joints = Joints {
             name: interface.name,
             joints: &interface.joints,
@@ -711,14 +714,10 @@ impl Ros2ControlHand {
         })
     }
 
-    /// Joint states that could not be used.
-    pub fn bad_states(&self) -> u64 {
-        self.link.bad_states
-    }
-
-    /// Why the newest refused joint state was refused.
-    pub fn newest_refusal(&self) -> Option<&str> {
-        self.link.newest_refusal.as_deref()
+    /// The newest refused joint state's (or fingertip forces') reason since the last
+    /// call, once.
+    pub fn take_refusal(&self) -> Option<String> {
+        self.link.take_refusal()
     }
 
     /// Counters for the owning node's status, under `prefix`.
@@ -741,10 +740,8 @@ impl HandHardware for Ros2ControlHand {
                     self.forces = v;
                 } else {
                     self.link.bad_states += 1;
-                    self.link.newest_refusal = Some(format!(
-                        "{} fingertip forces refused: not finite",
-                        self.link.name
-                    ));
+                    let text = format!("{} fingertip forces refused: not finite", self.link.name);
+                    self.link.refused(text);
                 }
             }
         }

@@ -370,9 +370,6 @@ pub struct SimNode {
     period: Duration,
     world: SimWorld,
     arm: SafeArm<7, ArmBackend>,
-    /// Refused ros2_control joint states already reported.
-    arm_bad_states_seen: u64,
-    hand_bad_states_seen: u64,
     hand: SafeHand<HandBackend>,
     arm_endpoint: ArmEndpoint<7>,
     hand_endpoint: HandEndpoint,
@@ -440,9 +437,7 @@ impl SimNode {
             period: Duration::from_secs_f64(1.0 / cfg.state_rate_hz),
             world,
             arm: SafeArm::new(arm_backend, arm_safety),
-            arm_bad_states_seen: 0,
             hand: SafeHand::new(hand_backend, hand_safety),
-            hand_bad_states_seen: 0,
             arm_endpoint: ArmEndpoint::new(bus, &PR2_ARM, &cfg.safety.arm_controller_node).await?,
             hand_endpoint: HandEndpoint::new(bus, &SHADOW_HAND, &cfg.safety.hand_controller_node)
                 .await?,
@@ -574,10 +569,8 @@ impl Node for SimNode {
             ArmBackend::Ros2Control(_) => self.arm.read(now_s),
         };
         if let ArmBackend::Ros2Control(r) = self.arm.backend()
-            && r.bad_states() > self.arm_bad_states_seen
+            && let Some(text) = r.take_refusal()
         {
-            self.arm_bad_states_seen = r.bad_states();
-            let text = r.newest_refusal().unwrap_or_default().to_owned();
             self.errors.event("arm joint state", text, now_s);
         }
         match arm_state.and_then(|s| {
@@ -596,10 +589,8 @@ impl Node for SimNode {
             HandBackend::Ros2Control(_) => self.hand.read(now_s),
         };
         if let HandBackend::Ros2Control(r) = self.hand.backend()
-            && r.bad_states() > self.hand_bad_states_seen
+            && let Some(text) = r.take_refusal()
         {
-            self.hand_bad_states_seen = r.bad_states();
-            let text = r.newest_refusal().unwrap_or_default().to_owned();
             self.errors.event("hand joint state", text, now_s);
         }
         match hand_state.and_then(|s| {
