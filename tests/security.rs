@@ -166,26 +166,100 @@ fn cert_dir(tag: &str) -> PathBuf {
     dir
 }
 
+/// Zenoh's TLS link needs its receive tasks on the transmit thread
+/// (teleop_node::tls_runtime); the shipped binaries start themselves again with that
+/// setting, a test runs itself again the same way: `false` in the first process (which
+/// has run the test `name` in a second one and checked that it passed), `true` in the
+/// second, which runs the test's body.
+fn in_tls_safe_runtime(name: &str) -> bool {
+    use teleop_node::tls_runtime::{TLS_SAFE_RUNTIME, ZENOH_RUNTIME_ENV};
+    if std::env::var_os(ZENOH_RUNTIME_ENV).is_some() {
+        return true;
+    }
+    let status = std::process::Command::new(std::env::current_exe().unwrap())
+        .args([name, "--exact", "--nocapture"])
+        .env(ZENOH_RUNTIME_ENV, TLS_SAFE_RUNTIME)
+        .status()
+        .unwrap();
+    assert!(
+        status.success(),
+        "the test in a TLS-safe zenoh runtime failed"
+    );
+    false
+}
+
+/// Two site routers with TLS and the generated access control on loopback, the robot
+/// site's simulator and PR2 arm controller (running for `run_s` and `run_s - 1` s)
+/// behind the remote router, and an observer there.
+struct Deployment {
+    local_port: u16,
+    remote_port: u16,
+    local_router: zenoh::Session,
+    remote_router: zenoh::Session,
+    sim_task: tokio::task::JoinHandle<anyhow::Result<teleop_node::FinalReport>>,
+    arm_task: tokio::task::JoinHandle<anyhow::Result<teleop_node::FinalReport>>,
+    observer: Bus,
+}
+
+impl Deployment {
+    async fn start(dir: &Path, run_s: u64) -> Self {
+        let (local_port, remote_port) = (free_port().unwrap(), free_port().unwrap());
+        let remote_router = zenoh::open(
+            router(SiteName::Remote, "remote-router", remote_port, None, dir)
+                .to_zenoh()
+                .unwrap(),
+        )
+        .await
+        .unwrap();
+        let local_router = zenoh::open(
+            router(
+                SiteName::Local,
+                "local-router",
+                local_port,
+                Some(remote_port),
+                dir,
+            )
+            .to_zenoh()
+            .unwrap(),
+        )
+        .await
+        .unwrap();
+        let sim = SimNodeConfig {
+            bus: client(remote_port, dir, "remote_sim"),
+            ..Default::default()
+        };
+        let sim_task = tokio::spawn(remote_sim::run(sim, Some(Duration::from_secs(run_s))));
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        let arm = ArmNodeConfig {
+            // The arm alone: no hand whose commanders it would wait for.
+            hand_nodes: Vec::new(),
+            bus: client(remote_port, dir, "pr2_arm_controller"),
+            ..Default::default()
+        };
+        let arm_task = tokio::spawn(arm_node::run(arm, Some(Duration::from_secs(run_s - 1))));
+        let observer = Bus::open(
+            "teleop_observer",
+            &client(remote_port, dir, "teleop-observer"),
+        )
+        .await
+        .unwrap();
+        Self {
+            local_port,
+            remote_port,
+            local_router,
+            remote_router,
+            sim_task,
+            arm_task,
+            observer,
+        }
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn only_the_operator_site_commands_the_robot_and_bad_commands_are_refused_and_counted() {
-    // Zenoh's TLS link needs its receive tasks on the transmit thread
-    // (teleop_node::tls_runtime); the shipped binaries start themselves again with that
-    // setting, this test runs itself again the same way.
-    use teleop_node::tls_runtime::{TLS_SAFE_RUNTIME, ZENOH_RUNTIME_ENV};
-    if std::env::var_os(ZENOH_RUNTIME_ENV).is_none() {
-        let status = std::process::Command::new(std::env::current_exe().unwrap())
-            .args([
-                "only_the_operator_site_commands_the_robot_and_bad_commands_are_refused_and_counted",
-                "--exact",
-                "--nocapture",
-            ])
-            .env(ZENOH_RUNTIME_ENV, TLS_SAFE_RUNTIME)
-            .status()
-            .unwrap();
-        assert!(
-            status.success(),
-            "the test in a TLS-safe zenoh runtime failed"
-        );
+    if !in_tls_safe_runtime(
+        "only_the_operator_site_commands_the_robot_and_bad_commands_are_refused_and_counted",
+    ) {
         return;
     }
     // The deployment's authority and identities; a rogue authority beside it.
@@ -208,48 +282,15 @@ async fn only_the_operator_site_commands_the_robot_and_bad_commands_are_refused_
     let rogue = cert_dir("rogue");
     certs::issue(&rogue, &identities(&["wrist_tracker"]), 1, false).unwrap();
 
-    let (local_port, remote_port) = (free_port().unwrap(), free_port().unwrap());
-    let remote_router = zenoh::open(
-        router(SiteName::Remote, "remote-router", remote_port, None, &dir)
-            .to_zenoh()
-            .unwrap(),
-    )
-    .await
-    .unwrap();
-    let local_router = zenoh::open(
-        router(
-            SiteName::Local,
-            "local-router",
-            local_port,
-            Some(remote_port),
-            &dir,
-        )
-        .to_zenoh()
-        .unwrap(),
-    )
-    .await
-    .unwrap();
-
-    // The robot site behind its router.
-    let sim = SimNodeConfig {
-        bus: client(remote_port, &dir, "remote_sim"),
-        ..Default::default()
-    };
-    let sim_task = tokio::spawn(remote_sim::run(sim, Some(Duration::from_secs(16))));
-    tokio::time::sleep(Duration::from_millis(300)).await;
-    let arm = ArmNodeConfig {
-        // The arm alone: no hand whose commanders it would wait for.
-        hand_nodes: Vec::new(),
-        bus: client(remote_port, &dir, "pr2_arm_controller"),
-        ..Default::default()
-    };
-    let arm_task = tokio::spawn(arm_node::run(arm, Some(Duration::from_secs(15))));
-    let observer = Bus::open(
-        "teleop_observer",
-        &client(remote_port, &dir, "teleop-observer"),
-    )
-    .await
-    .unwrap();
+    let Deployment {
+        local_port,
+        remote_port,
+        local_router,
+        remote_router,
+        sim_task,
+        arm_task,
+        observer,
+    } = Deployment::start(&dir, 16).await;
     let states = observer
         .subscriber(&topics::HW_PR2_ARM_STATE)
         .await
@@ -431,4 +472,235 @@ async fn only_the_operator_site_commands_the_robot_and_bad_commands_are_refused_
     remote_router.close().await.unwrap();
     let _ = std::fs::remove_dir_all(&dir);
     let _ = std::fs::remove_dir_all(&rogue);
+}
+
+/// The keys of the replies to a query on `key` from `bus` (an admin-space read), but
+/// those of `bus`'s own session (a Zenoh session answers about its own links).
+async fn replies(bus: &Bus, key: &str) -> Vec<String> {
+    let own = format!("@/{}/", bus.zid());
+    let replies = bus
+        .session()
+        .get(key)
+        .timeout(Duration::from_millis(1500))
+        .await
+        .unwrap();
+    let mut keys = Vec::new();
+    while let Ok(reply) = replies.recv_async().await {
+        if let Ok(sample) = reply.result()
+            && !sample.key_expr().as_str().starts_with(&own)
+        {
+            keys.push(sample.key_expr().to_string());
+        }
+    }
+    keys
+}
+
+/// The Zenoh ids that announce node `name` in `bus`'s graph.
+async fn zids_of(bus: &Bus, name: &str) -> Vec<String> {
+    let mut zids: Vec<String> = bus
+        .graph(Duration::from_millis(800))
+        .await
+        .unwrap()
+        .into_iter()
+        .filter(|e| e.node_name == name)
+        .map(|e| e.zid)
+        .collect();
+    zids.sort();
+    zids.dedup();
+    zids
+}
+
+/// Identity claims, end to end through the routers: an allowed identity of the robot
+/// site (the feedback publisher) announcing a publisher under `pr2_arm_controller` and
+/// sending arm commands; an operator-site identity (hand inference) announcing
+/// `wrist_tracker` while the real one runs and sending wrist poses; strangers reading
+/// the routers' admin space. Each is refused (no token in the robot site's graph, no
+/// sample at the robot site, no reply) and nothing moves, while the same paths carry
+/// the real nodes' samples and answer the observer.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn identity_claims_are_refused_and_only_observers_read_the_admin_space() {
+    if !in_tls_safe_runtime("identity_claims_are_refused_and_only_observers_read_the_admin_space") {
+        return;
+    }
+    let dir = cert_dir("claims");
+    certs::issue(
+        &dir,
+        &identities(&[
+            "local-router=127.0.0.1",
+            "remote-router=127.0.0.1",
+            "remote_sim",
+            "pr2_arm_controller",
+            "feedback_publisher",
+            "wrist_tracker",
+            "hand_inference",
+            "teleop-observer",
+            "intruder",
+        ]),
+        1,
+        false,
+    )
+    .unwrap();
+    let Deployment {
+        local_port,
+        remote_port,
+        local_router,
+        remote_router,
+        sim_task,
+        arm_task,
+        observer,
+    } = Deployment::start(&dir, 14).await;
+    let states = observer
+        .subscriber(&topics::HW_PR2_ARM_STATE)
+        .await
+        .unwrap();
+    let commands = observer
+        .subscriber(&topics::HW_PR2_ARM_COMMAND)
+        .await
+        .unwrap();
+    let poses = observer.subscriber(&topics::WRIST_POSE).await.unwrap();
+    // The real wrist tracker, at the operator's router: poses with the clutch released.
+    let real = Bus::open("wrist_tracker", &client(local_port, &dir, "wrist_tracker"))
+        .await
+        .unwrap();
+    let real_input = real.publisher(&topics::OPERATOR_INPUT).await.unwrap();
+    let real_wrist = real.publisher(&topics::WRIST_POSE).await.unwrap();
+    let real_gid = real_wrist.gid();
+    let real_run = {
+        let clock = real.clock().clone();
+        tokio::spawn(async move {
+            for _ in 0..250 {
+                let now = clock.now_ns();
+                real_input.put(&pedals(now, false)).unwrap();
+                real_wrist.put(&pose_at(0.5, now)).unwrap();
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
+        })
+    };
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+    assert!(
+        states.recv_timeout(Duration::from_secs(2)).await.is_some(),
+        "the observer hears the arm's encoders"
+    );
+    let _ = drain(&states);
+    let real_zid = zids_of(&observer, "wrist_tracker").await;
+    assert_eq!(
+        real_zid,
+        [real.zid()],
+        "the robot site sees the real tracker"
+    );
+    let arm_zids = zids_of(&observer, "pr2_arm_controller").await;
+    assert_eq!(arm_zids.len(), 1, "one arm controller: {arm_zids:?}");
+    let since = observer.clock().now_ns();
+
+    // a. The feedback publisher's identity claims the arm controller's name and sends
+    // 3 rad/s to every arm joint; b. hand inference's identity claims the wrist
+    // tracker's and sends wrist poses, while the real one runs.
+    let fake_arm = Bus::open(
+        "pr2_arm_controller",
+        &client(remote_port, &dir, "feedback_publisher"),
+    )
+    .await
+    .unwrap();
+    let fake_wrist = Bus::open("wrist_tracker", &client(local_port, &dir, "hand_inference"))
+        .await
+        .unwrap();
+    let fake_cmd = fake_arm
+        .publisher(&topics::HW_PR2_ARM_COMMAND)
+        .await
+        .unwrap();
+    let fake_pose = fake_wrist.publisher(&topics::WRIST_POSE).await.unwrap();
+    let fast = JointState {
+        name: PR2_ARM_JOINTS.iter().map(|s| (*s).to_owned()).collect(),
+        velocity: vec![3.0; 7],
+        ..Default::default()
+    };
+    for _ in 0..75 {
+        fake_cmd.put(&fast).unwrap();
+        fake_pose
+            .put(&pose_at(0.7, fake_wrist.clock().now_ns()))
+            .unwrap();
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let claimed_arm = zids_of(&observer, "pr2_arm_controller").await;
+    let claimed_wrist = zids_of(&observer, "wrist_tracker").await;
+    let command_sources: Vec<[u8; 16]> = commands
+        .publishers_since(since)
+        .iter()
+        .map(|p| p.gid)
+        .collect();
+    let pose_sources: Vec<[u8; 16]> = poses
+        .publishers_since(since)
+        .iter()
+        .map(|p| p.gid)
+        .collect();
+    let moved = arm_moved(&drain(&states));
+    println!(
+        "claims: arm controller announced by {claimed_arm:?} (the real one {arm_zids:?}); \
+         wrist tracker by {claimed_wrist:?} (the real one {real_zid:?}); \
+         arm command publishers heard {}, wrist pose publishers heard {}; arm moved {moved:.5} rad",
+        command_sources.len(),
+        pose_sources.len()
+    );
+    assert_eq!(
+        claimed_arm, arm_zids,
+        "a second pr2_arm_controller announced"
+    );
+    assert_eq!(claimed_wrist, real_zid, "a second wrist_tracker announced");
+    assert!(
+        !command_sources.contains(&fake_cmd.gid()),
+        "the claimed arm controller's commands reached the robot site"
+    );
+    assert!(
+        !command_sources.is_empty(),
+        "the real controller's commands are heard (the check can see a command)"
+    );
+    assert!(
+        !pose_sources.contains(&fake_pose.gid()),
+        "the claimed wrist tracker's poses reached the robot site"
+    );
+    assert!(
+        pose_sources.contains(&real_gid),
+        "the real tracker's poses are heard (the check can see a pose)"
+    );
+    assert!(moved < 2e-3, "the arm moved {moved} rad");
+
+    // c. The admin space: the routers answer the observer, nobody else.
+    let observed = replies(&observer, "@/**").await;
+    let mut refused = Vec::new();
+    for (who, port) in [
+        ("intruder", local_port),
+        ("intruder", remote_port),
+        ("wrist_tracker", local_port),
+        ("pr2_arm_controller", remote_port),
+    ] {
+        let bus = Bus::open("teleop_cli_2", &client(port, &dir, who))
+            .await
+            .unwrap();
+        refused.push((who, port, replies(&bus, "@/**").await));
+        bus.close().await.unwrap();
+    }
+    println!(
+        "admin space: the observer got {} replies ({:?}...); others {refused:?}",
+        observed.len(),
+        &observed[..observed.len().min(3)]
+    );
+    assert!(
+        !observed.is_empty(),
+        "the observer reads the routers' admin space"
+    );
+    for (who, port, keys) in refused {
+        assert!(keys.is_empty(), "{who} at port {port} read {keys:?}");
+    }
+
+    fake_arm.close().await.unwrap();
+    fake_wrist.close().await.unwrap();
+    real_run.abort();
+    real.close().await.unwrap();
+    observer.close().await.unwrap();
+    let report = arm_task.await.unwrap().unwrap();
+    assert_eq!(report.counter("arm.engagements").unwrap_or(0), 0);
+    sim_task.await.unwrap().unwrap();
+    local_router.close().await.unwrap();
+    remote_router.close().await.unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
 }

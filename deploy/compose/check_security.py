@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """Checks what check_security.sh recorded: the PR2 arm controller's counters and an arm
 encoder sample before the attempts, after the unauthorised peers, after the operator
-identity's bad samples.
+identity's bad samples, after the identity claims; the robot site's graph and the
+samples it heard during the claims; the admin-space replies each identity got.
 
-    check_security.py DIR
+    check_security.py DIR WRIST_CLAIM_GID ARM_CLAIM_GID
 """
 import json
 import sys
@@ -33,6 +34,73 @@ def arm(path: Path) -> list:
         except (json.JSONDecodeError, KeyError):
             continue
     sys.exit(f"security: no arm state in {path}")
+
+
+def named(path: Path, node: str) -> int:
+    """How many sessions announce `node` in a `teleop node list` output."""
+    return sum(1 for line in path.read_text().splitlines() if line.split()[:1] == [f"/{node}"])
+
+
+def heard(path: Path) -> list:
+    """(publisher GID, announcing node) of each sample in a `topic echo --format json`."""
+    out = []
+    for line in path.read_text().splitlines():
+        try:
+            meta = json.loads(line)["_meta"]
+        except (json.JSONDecodeError, KeyError):
+            continue
+        out.append((meta.get("publisher_gid"), meta.get("publisher_node")))
+    return out
+
+
+def replies(path: Path):
+    """The number of replies `teleop query` printed, None if it did not get that far."""
+    for line in reversed(path.read_text().splitlines()):
+        parts = line.split()
+        if len(parts) == 4 and parts[1] == "replies," and parts[3] == "errors":
+            return int(parts[0])
+    return None
+
+
+def claims(d: Path, wrist_gid: str, arm_gid: str, q_before: list) -> list:
+    fails = []
+    wrist_nodes, arm_nodes = named(d / "claim-wrist.nodes", "wrist_tracker"), named(d / "claim-arm.nodes", "pr2_arm_controller")
+    wrist, arm_cmds = heard(d / "claim-wrist.echo"), heard(d / "claim-arm.echo")
+    fake_wrist = sum(1 for g, _ in wrist if g == wrist_gid)
+    fake_arm = sum(1 for g, _ in arm_cmds if g == arm_gid)
+    real_arm = sum(1 for g, n in arm_cmds if n == "pr2_arm_controller" and g != arm_gid)
+    real_wrist = sum(1 for g, n in wrist if n == "wrist_tracker" and g != wrist_gid)
+    q3 = arm(d / "claimed.arm")
+    print(f"security: identity claims: `wrist_tracker` announced by {wrist_nodes} session(s) at the robot site "
+          f"while hand inference's identity claimed it, its poses heard {fake_wrist} times (the real tracker's "
+          f"{real_wrist}); `pr2_arm_controller` "
+          f"announced by {arm_nodes} while the feedback publisher's identity claimed it, its commands heard "
+          f"{fake_arm} times (the real controller's {real_arm}); arm moved {max(abs(x - y) for x, y in zip(q_before, q3)) * 1e3:.2f} mrad")
+    if wrist_nodes != 1:
+        fails.append(f"{wrist_nodes} sessions announce wrist_tracker at the robot site")
+    if arm_nodes != 1:
+        fails.append(f"{arm_nodes} sessions announce pr2_arm_controller at the robot site")
+    if fake_wrist or fake_arm:
+        fails.append(f"claimed identities were heard: {fake_wrist} wrist poses, {fake_arm} arm commands")
+    if real_wrist == 0:
+        fails.append("no pose of the real wrist tracker heard during the claim (the check sees nothing)")
+    if real_arm == 0:
+        fails.append("no command of the real arm controller heard during the claim (the check sees nothing)")
+    if max(abs(x - y) for x, y in zip(q_before, q3)) > 2e-3:
+        fails.append("the arm moved during the identity claims")
+    admin = {p.stem[len("admin-"):]: replies(p) for p in sorted(d.glob("admin-*.log"))}
+    print("security: admin space (@/**) replies: " + ", ".join(f"{k} {v}" for k, v in admin.items()))
+    for who, n in admin.items():
+        if n is None:
+            fails.append(f"the admin-space query as {who} did not run (see admin-{who}.log)")
+        elif who.startswith("teleop-observer"):
+            if n < 1:
+                fails.append(f"the observer got no admin-space reply ({who})")
+        elif n != 0:
+            fails.append(f"{who} got {n} admin-space replies")
+    if len(admin) != 5:
+        fails.append(f"{len(admin)} admin-space queries recorded, expected 5")
+    return fails
 
 
 def main() -> None:
@@ -73,6 +141,7 @@ def main() -> None:
         fails.append("the arm engaged")
     if moved(q1, q2) > 2e-3:
         fails.append(f"the arm moved {moved(q1, q2)} rad")
+    fails += claims(d, sys.argv[2], sys.argv[3], q2)
     if fails:
         sys.exit("security: FAILED: " + "; ".join(fails))
     print("security: passed")

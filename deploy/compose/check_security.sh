@@ -13,7 +13,15 @@
 #   3. the operator site's own identity (a compromised or broken operator node) sends
 #      across the WAN malformed bytes, samples stamped 5 s in the future, a replayed
 #      (older) sequence number, NaN poses: each is refused and counted at the robot
-#      site, by kind; the arm did not move.
+#      site, by kind; the arm did not move;
+#   4. identity claims: while the real wrist tracker runs, hand inference's identity
+#      announces `wrist_tracker` and sends wrist poses (before the commanders stop);
+#      the feedback publisher's identity, on the robot's LAN, announces
+#      `pr2_arm_controller` and sends arm commands; strangers and nodes query the
+#      routers' admin space (`@/**`). Checked at the robot site: one node of each name
+#      in the graph, no sample of the claimed publishers (their GIDs) while the real
+#      controller's commands are heard, the arm did not move; no admin-space reply but
+#      to the observer.
 #
 # Needs: COMPOSE_PROJECT_NAME, TELEOP_IMAGE, TELEOP_CERTS, TELEOP_REPORT_DIR, COMPOSE_FILE_PATH.
 set -euo pipefail
@@ -49,14 +57,33 @@ snapshot() {
   observe topic echo /teleop/hw/pr2_arm/state --format json -n 1 --duration-s 3 >"$OUT/$1.arm" 2>/dev/null || true
 }
 
+# An identity the deployment does not know, signed by the deployment's authority.
+docker run --rm -v "$TELEOP_CERTS:/certs" "$IMAGE" teleop certs --out /certs --keep-existing intruder >/dev/null
+
+# 4a. While the real wrist tracker runs: hand inference's identity claims its name.
+CLAIM_GID=c1a1c1a1c1a1c1a1c1a1c1a1c1a1c1a1
+as local_lan "$TELEOP_CERTS" hand_inference "$LOCAL" topic pub /teleop/wrist_pose \
+  '{header: {frame_id: ur5_base}, pose: {position: {x: 0.7, z: 0.3}, orientation: {w: 1.0}}}' \
+  --stamp-now --rate-hz 50 --duration-s 4 --node wrist_tracker --gid "$CLAIM_GID" >/dev/null 2>&1 &
+sleep 1.5
+observe node list --wait-s 1.5 >"$OUT/claim-wrist.nodes" 2>/dev/null &
+observe topic echo /teleop/wrist_pose --format json --duration-s 2 >"$OUT/claim-wrist.echo" 2>/dev/null &
+wait
+# The admin space: the routers answer their observer identity alone.
+for who in "teleop-observer local_lan $LOCAL" "intruder local_lan $LOCAL" \
+  "intruder wan_remote $REMOTE_WAN" "wrist_tracker local_lan $LOCAL" \
+  "pr2_arm_controller remote_lan $REMOTE"; do
+  read -r id net endpoint <<<"$who"
+  as "$net" "$TELEOP_CERTS" "$id" "$endpoint" query '@/**' --timeout-s 2 \
+    >"$OUT/admin-$id-$net.log" 2>&1 || true
+done
+
 echo "security: the operator site's commanders stopped; nothing else commands the robot"
 compose stop -t 5 pc1-wrist-tracker pc1-hand-inference >/dev/null 2>&1
 sleep 1.5
 snapshot before
 
-# Identities the deployment does not know: one signed by the deployment's authority
-# ("intruder"), one by another authority.
-docker run --rm -v "$TELEOP_CERTS:/certs" "$IMAGE" teleop certs --out /certs --keep-existing intruder >/dev/null
+# Identities the deployment does not know: one signed by another authority.
 ROGUE=$OUT/rogue-ca
 docker run --rm -v "$OUT:/out" "$IMAGE" teleop certs --out /out/rogue-ca wrist_tracker >/dev/null
 
@@ -104,4 +131,17 @@ inject '{header: {frame_id: ur5_base}, pose: {position: {x: .nan, z: 0.3}, orien
   -n 5 --first-sequence 200
 snapshot injected
 
-python3 "$HERE/check_security.py" "$OUT"
+# 4b. The feedback publisher's identity, on the robot's LAN, claims the arm controller's
+# name and sends 0.5 rad/s to every arm joint.
+ARM_CLAIM_GID=c1a1b2b2c1a1b2b2c1a1b2b2c1a1b2b2
+as remote_lan "$TELEOP_CERTS" feedback_publisher "$REMOTE" --hardware-interface '*' topic pub \
+  /teleop/hw/pr2_arm/command \
+  '{name: [r_shoulder_pan_joint, r_shoulder_lift_joint, r_upper_arm_roll_joint, r_elbow_flex_joint, r_forearm_roll_joint, rh_WRJ2, rh_WRJ1], velocity: [0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5]}' \
+  --stamp-now --rate-hz 100 --duration-s 4 --node pr2_arm_controller --gid "$ARM_CLAIM_GID" >/dev/null 2>&1 &
+sleep 1.5
+observe node list --wait-s 1.5 >"$OUT/claim-arm.nodes" 2>/dev/null &
+observe topic echo /teleop/hw/pr2_arm/command --format json --duration-s 2 >"$OUT/claim-arm.echo" 2>/dev/null &
+wait
+snapshot claimed
+
+python3 "$HERE/check_security.py" "$OUT" "$CLAIM_GID" "$ARM_CLAIM_GID"

@@ -128,14 +128,14 @@ pub async fn topic_list(cfg: &BusConfig, wait_s: f64) -> anyhow::Result<()> {
 
 pub async fn node_list(cfg: &BusConfig, wait_s: f64) -> anyhow::Result<()> {
     let (bus, g) = graph(cfg, wait_s).await?;
-    let mut nodes: BTreeMap<String, (String, Vec<String>, Vec<String>)> = BTreeMap::new();
+    // By name and Zenoh id: two sessions announcing one name (a node whose hardware
+    // topics have their own session, or an impostor) are two lines.
+    let mut nodes: BTreeMap<(String, String), (Vec<String>, Vec<String>)> = BTreeMap::new();
     for e in g.iter().filter(|e| e.node_name != bus.node_name()) {
-        let entry = nodes
-            .entry(e.fq_node_name())
-            .or_insert_with(|| (e.zid.clone(), Vec::new(), Vec::new()));
+        let entry = nodes.entry((e.fq_node_name(), e.zid.clone())).or_default();
         match (&e.kind, &e.topic) {
-            (EntityKind::Publisher, Some(t)) => entry.1.push(t.clone()),
-            (EntityKind::Subscriber, Some(t)) => entry.2.push(t.clone()),
+            (EntityKind::Publisher, Some(t)) => entry.0.push(t.clone()),
+            (EntityKind::Subscriber, Some(t)) => entry.1.push(t.clone()),
             _ => {}
         }
     }
@@ -149,7 +149,7 @@ pub async fn node_list(cfg: &BusConfig, wait_s: f64) -> anyhow::Result<()> {
             "{:<28} {:<34} {:>4} {:>4}",
             "NODE", "ZENOH ID", "PUBS", "SUBS"
         );
-        for (name, (zid, pubs, subs)) in &nodes {
+        for ((name, zid), (pubs, subs)) in &nodes {
             println!("{name:<28} {zid:<34} {:>4} {:>4}", pubs.len(), subs.len());
             for p in pubs {
                 println!("    publishes  {p}");
@@ -159,6 +159,75 @@ pub async fn node_list(cfg: &BusConfig, wait_s: f64) -> anyhow::Result<()> {
             }
         }
     }
+    bus.close().await?;
+    Ok(())
+}
+
+/// `teleop query`.
+#[derive(Debug, clap::Args)]
+pub struct QueryArgs {
+    /// The key expression (a selector: parameters after `?` are passed on).
+    pub key_expr: String,
+    /// How long to wait for replies, seconds.
+    #[arg(long, default_value_t = 2.0)]
+    pub timeout_s: f64,
+    /// Print at most this many characters of each value.
+    #[arg(long, default_value_t = 160)]
+    pub max_chars: usize,
+}
+
+/// Queries `args.key_expr` and prints each reply, then the number of replies and of
+/// error replies (`N replies, M errors`). Replies about this command's own session
+/// (`@/<its zid>/...`: a Zenoh session answers admin-space queries about its own
+/// links) are left out.
+pub async fn query(cfg: &BusConfig, args: &QueryArgs) -> anyhow::Result<()> {
+    if !(args.timeout_s.is_finite() && args.timeout_s > 0.0) {
+        bail!(
+            "--timeout-s must be a positive number, got {}",
+            args.timeout_s
+        );
+    }
+    let selector = zenoh::query::Selector::try_from(args.key_expr.as_str())
+        .map_err(|e| anyhow::anyhow!("`{}` is not a key expression: {e}", args.key_expr))?;
+    let bus = open(cfg).await?;
+    let replies = bus
+        .session()
+        .get(selector)
+        .timeout(Duration::from_secs_f64(args.timeout_s))
+        .await
+        .map_err(|e| anyhow::anyhow!("query {}: {e}", args.key_expr))?;
+    let cut = |text: String| -> String {
+        match text.char_indices().nth(args.max_chars) {
+            Some((i, _)) => format!("{}...", &text[..i]),
+            None => text,
+        }
+    };
+    let own = format!("@/{}/", bus.zid());
+    let (mut ok, mut errors) = (0usize, 0usize);
+    while let Ok(reply) = replies.recv_async().await {
+        match reply.result() {
+            Ok(sample) if sample.key_expr().as_str().starts_with(&own) => {}
+            Ok(sample) => {
+                ok += 1;
+                let text = sample
+                    .payload()
+                    .try_to_string()
+                    .map(|t| t.into_owned())
+                    .unwrap_or_else(|_| format!("<{} bytes>", sample.payload().len()));
+                println!("{} {}", sample.key_expr(), cut(text));
+            }
+            Err(e) => {
+                errors += 1;
+                let text = e
+                    .payload()
+                    .try_to_string()
+                    .map(|t| t.into_owned())
+                    .unwrap_or_default();
+                println!("error reply: {}", cut(text));
+            }
+        }
+    }
+    println!("{ok} replies, {errors} errors");
     bus.close().await?;
     Ok(())
 }
@@ -204,9 +273,14 @@ async fn echo_typed<T: Message>(
         n += 1;
         let mut v = to_json(&r.msg)?;
         if let Some(obj) = v.as_object_mut() {
+            let gid: String = r.publisher_gid.iter().map(|b| format!("{b:02x}")).collect();
+            // The node that announced this publisher (liveliness), if any did.
+            let node = sub.publisher_info(&r.publisher_gid).map(|p| p.node_name);
             obj.insert(
                 "_meta".into(),
                 serde_json::json!({
+                    "publisher_gid": gid,
+                    "publisher_node": node,
                     "sequence": r.sequence,
                     "latency_ms": r.latency_ns() as f64 / 1e6,
                     // When it was sent (the publisher's clock) and received (ours), s

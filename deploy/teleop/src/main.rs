@@ -48,6 +48,10 @@ enum Command {
     /// Live nodes.
     #[command(subcommand)]
     Node(NodeCommand),
+    /// A Zenoh query (get) on a key expression: every reply's key and value (as text,
+    /// cut short). E.g. a site router's admin space, `teleop query '@/*/router/**'`,
+    /// which the routers answer to their observer identities alone.
+    Query(inspect::QueryArgs),
     /// Rates, latency and drops of every topic of the table, refreshed every second.
     Monitor {
         /// Stop after this many seconds.
@@ -158,6 +162,7 @@ async fn main() -> anyhow::Result<()> {
             inspect::monitor(&bus_cfg, Some(&topic), duration_s).await
         }
         Command::Node(NodeCommand::List { wait_s }) => inspect::node_list(&bus_cfg, wait_s).await,
+        Command::Query(args) => inspect::query(&bus_cfg, &args).await,
         Command::Monitor { duration_s } => inspect::monitor(&bus_cfg, None, duration_s).await,
         Command::Launch(args) => launch::launch(args, &cli.zenoh).await,
         Command::SeedsPlot(args) => seeds::plot(&args),

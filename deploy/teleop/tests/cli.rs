@@ -56,6 +56,7 @@ async fn echo_node_list_and_hz_against_a_live_node() {
     };
     let bus = Bus::open("pedal_box", &cfg).await.unwrap();
     let publisher = bus.publisher(&topics::OPERATOR_INPUT).await.unwrap();
+    let gid: String = publisher.gid().iter().map(|b| format!("{b:02x}")).collect();
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     let stop2 = stop.clone();
     let pump = tokio::spawn(async move {
@@ -127,6 +128,10 @@ async fn echo_node_list_and_hz_against_a_live_node() {
         assert_eq!(v["motion_scale"], 0.333);
         assert_eq!(v["header"]["frame_id"], "pedals");
         assert!(v["_meta"]["sequence"].as_i64().unwrap() >= 1);
+        // Who sent it: the GID, and the node that announced it once its token is in.
+        assert_eq!(v["_meta"]["publisher_gid"], gid.as_str());
+        let node = &v["_meta"]["publisher_node"];
+        assert!(node.is_null() || node == "pedal_box", "{node}");
     }
 
     assert!(nodes.status.success());
@@ -145,4 +150,64 @@ async fn echo_node_list_and_hz_against_a_live_node() {
         .unwrap_or_else(|| panic!("{hz}"));
     let rate: f64 = row.split_whitespace().nth(1).unwrap().parse().unwrap();
     assert!(rate > 10.0, "rate column should show ~100 Hz: {row}");
+}
+
+/// `teleop query` reads a router's admin space (on by default, as zenohd's), leaves out
+/// its own session's entries, and names a malformed key expression.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn query_reads_a_routers_admin_space() {
+    let port = teleop_bus::testing::free_port().unwrap();
+    let mut cfg = teleop_node::router::RouterConfig::default();
+    cfg.bus.domain_id = 32;
+    cfg.bus.zenoh.listen = vec![format!("tcp/127.0.0.1:{port}")];
+    let router = zenoh::open(cfg.to_zenoh().unwrap()).await.unwrap();
+    let router_zid = router.zid().to_string();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let out = tokio::task::spawn_blocking(move || {
+        let run = |key: &str| {
+            teleop()
+                .args([
+                    "--mode",
+                    "client",
+                    "--no-multicast-scouting",
+                    "--connect",
+                    &endpoint,
+                    "query",
+                    key,
+                    "--timeout-s",
+                    "1.5",
+                ])
+                .env("RUST_BACKTRACE", "0")
+                .output()
+                .unwrap()
+        };
+        (run("@/**"), run("a//b"))
+    })
+    .await
+    .unwrap();
+    router.close().await.unwrap();
+    let (admin, bad) = out;
+    assert!(
+        admin.status.success(),
+        "{}",
+        String::from_utf8_lossy(&admin.stderr)
+    );
+    let text = String::from_utf8(admin.stdout).unwrap();
+    let keys: Vec<&str> = text
+        .lines()
+        .filter_map(|l| l.split_whitespace().next())
+        .filter(|k| k.starts_with("@/"))
+        .collect();
+    assert!(!keys.is_empty(), "{text}");
+    for k in &keys {
+        assert!(
+            k.starts_with(&format!("@/{router_zid}/router")),
+            "only the router's entries: {k}"
+        );
+    }
+    let last = text.lines().last().unwrap();
+    assert_eq!(last, format!("{} replies, 0 errors", keys.len()));
+    assert!(!bad.status.success());
+    let err = String::from_utf8(bad.stderr).unwrap();
+    assert!(err.contains("`a//b` is not a key expression"), "{err}");
 }

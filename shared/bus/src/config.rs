@@ -334,8 +334,122 @@ impl TlsSettings {
     }
 }
 
+impl ZenohSettings {
+    /// The settings of this node's hardware session, when it needs one.
+    ///
+    /// Zenoh's access control knows a link by the interface of the link's local
+    /// address, and a peer on this host that dials one of this node's addresses on
+    /// another interface (one it listens on for the operator site, say) makes a link
+    /// that never leaves the host but counts as that interface's, where hardware
+    /// topics are dropped; which of a node's addresses a peer dials is Zenoh's choice
+    /// (the order of its listeners is a hash map's). So a peer node that listens on
+    /// any address outside its hardware interfaces carries its hardware topics on a
+    /// second session that listens on the hardware interfaces' addresses alone (port
+    /// chosen by the system), dials only configured endpoints inside them, and scouts
+    /// like the first: every link it has is on a hardware interface whoever dials.
+    /// `None` when every listened address is on a hardware interface (the default:
+    /// loopback only), for a client, or when `hardware_interfaces` is `["*"]`.
+    ///
+    /// # Errors
+    /// [`ConfigError::HardwareInterfaces`] as [`resolve_interfaces`].
+    pub fn hardware_session(&self) -> Result<Option<ZenohSettings>, ConfigError> {
+        self.hardware_session_on(&host_networks())
+    }
+
+    /// [`ZenohSettings::hardware_session`] on a host with the interfaces `nets`
+    /// (name, IPv4 address, network mask), as [`host_networks`] gives them.
+    ///
+    /// # Errors
+    /// As [`ZenohSettings::hardware_session`].
+    pub fn hardware_session_on(
+        &self,
+        nets: &[(String, std::net::Ipv4Addr, u32)],
+    ) -> Result<Option<ZenohSettings>, ConfigError> {
+        if self.mode != Mode::Peer {
+            return Ok(None);
+        }
+        let host: Vec<(String, std::net::Ipv4Addr)> =
+            nets.iter().map(|(n, ip, _)| (n.clone(), *ip)).collect();
+        let allowed = resolve_interfaces(&self.hardware_interfaces, &host)?;
+        if allowed.iter().any(|a| a == "*") {
+            return Ok(None);
+        }
+        let inside = |endpoint: &str| {
+            endpoint_interfaces(endpoint, nets)
+                .is_some_and(|ifaces| ifaces.iter().all(|i| allowed.contains(i)))
+        };
+        if self.listen.iter().all(|e| inside(e)) {
+            return Ok(None);
+        }
+        let protocol = if self.tls.is_some() { "tls" } else { "tcp" };
+        let mut listen: Vec<String> = Vec::new();
+        for (name, ip, _) in nets {
+            let endpoint = format!("{protocol}/{ip}:0");
+            if allowed.contains(name) && !listen.contains(&endpoint) {
+                listen.push(endpoint);
+            }
+        }
+        Ok(Some(ZenohSettings {
+            listen,
+            connect: self.connect.iter().filter(|e| inside(e)).cloned().collect(),
+            ..self.clone()
+        }))
+    }
+}
+
+/// The interfaces of this host a link to or from `endpoint` would be on (`None` when
+/// that cannot be told: a host name, IPv6 other than loopback). A Unix socket is on
+/// none (Zenoh's access control gives its links no interface), an unspecified
+/// address on all.
+fn endpoint_interfaces(
+    endpoint: &str,
+    nets: &[(String, std::net::Ipv4Addr, u32)],
+) -> Option<Vec<String>> {
+    let (protocol, rest) = endpoint.split_once('/')?;
+    if protocol.starts_with("unixsock") {
+        return Some(Vec::new());
+    }
+    let address = rest.split(['?', '#']).next()?;
+    let ip = match address.parse::<std::net::SocketAddr>().ok()?.ip() {
+        std::net::IpAddr::V4(ip) => ip,
+        std::net::IpAddr::V6(ip) if ip.is_loopback() => std::net::Ipv4Addr::LOCALHOST,
+        std::net::IpAddr::V6(ip) if ip.is_unspecified() => std::net::Ipv4Addr::UNSPECIFIED,
+        std::net::IpAddr::V6(_) => return None,
+    };
+    let mut out: Vec<String> = Vec::new();
+    for (name, addr, mask) in nets {
+        let on = ip.is_unspecified() || u32::from(ip) & mask == u32::from(*addr) & mask;
+        if on && !out.contains(name) {
+            out.push(name.clone());
+        }
+    }
+    (!out.is_empty()).then_some(out)
+}
+
+/// This host's interfaces with their IPv4 addresses and network masks.
+pub fn host_networks() -> Vec<(String, std::net::Ipv4Addr, u32)> {
+    let Ok(addrs) = nix::ifaddrs::getifaddrs() else {
+        return Vec::new();
+    };
+    addrs
+        .filter_map(|a| {
+            let ip = a.address?.as_sockaddr_in()?.ip();
+            let mask = a
+                .netmask
+                .and_then(|m| m.as_sockaddr_in().map(|m| u32::from(m.ip())));
+            Some((a.interface_name, ip, mask.unwrap_or(u32::MAX)))
+        })
+        .collect()
+}
+
 /// Key expression of every hardware topic's data, in any domain.
 pub const HARDWARE_KEYS: &str = "*/teleop/hw/**";
+
+/// Whether the topic named `name` (as in the topic table, no leading slash) is a
+/// hardware topic, one of [`HARDWARE_KEYS`].
+pub fn is_hardware_topic(name: &str) -> bool {
+    name.starts_with("teleop/hw/")
+}
 
 /// The network interfaces of this host (Linux: `/sys/class/net`); empty elsewhere.
 pub fn host_interfaces() -> Vec<String> {
@@ -352,14 +466,9 @@ pub fn host_interfaces() -> Vec<String> {
 
 /// This host's interfaces with their IPv4 addresses.
 pub fn host_addresses() -> Vec<(String, std::net::Ipv4Addr)> {
-    let Ok(addrs) = nix::ifaddrs::getifaddrs() else {
-        return Vec::new();
-    };
-    addrs
-        .filter_map(|a| {
-            let ip = a.address?.as_sockaddr_in()?.ip();
-            Some((a.interface_name, ip))
-        })
+    host_networks()
+        .into_iter()
+        .map(|(name, ip, _)| (name, ip))
         .collect()
 }
 
@@ -455,6 +564,75 @@ fn json_list(items: &[String]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn site_host() -> Vec<(String, std::net::Ipv4Addr, u32)> {
+        vec![
+            (
+                "lo".into(),
+                std::net::Ipv4Addr::new(127, 0, 0, 1),
+                0xff00_0000,
+            ),
+            (
+                "eth0".into(),
+                std::net::Ipv4Addr::new(192, 0, 2, 2),
+                0xffff_ff00,
+            ),
+            (
+                "eth1".into(),
+                std::net::Ipv4Addr::new(172, 30, 2, 5),
+                0xffff_ff00,
+            ),
+        ]
+    }
+
+    #[test]
+    fn a_node_listening_outside_its_hardware_interfaces_gets_a_hardware_session() {
+        let host = site_host();
+        // The default (loopback only) and any listener inside needs none.
+        let mut z = ZenohSettings::default();
+        assert_eq!(z.hardware_session_on(&host).expect("ok"), None);
+        z.listen = vec![
+            "tcp/127.0.0.1:0".into(),
+            "unixsock-stream//tmp/a.sock".into(),
+        ];
+        assert_eq!(z.hardware_session_on(&host).expect("ok"), None);
+        z.hardware_interfaces = vec!["lo".into(), "172.30.2.0/24".into()];
+        z.listen = vec!["tcp/127.0.0.1:0".into(), "tcp/172.30.2.5:7447".into()];
+        assert_eq!(z.hardware_session_on(&host).expect("ok"), None);
+        // A listener for the operator site on eth0: hardware goes on a second session
+        // listening on the hardware interfaces' addresses alone, dialling only
+        // configured endpoints inside them.
+        z.listen.push("tcp/192.0.2.2:7447#iface=eth0".into());
+        z.connect = vec![
+            "tcp/172.30.2.9:7447".into(),
+            "tcp/192.0.2.10:7447".into(),
+            "tcp/robot-router:7447".into(),
+        ];
+        let hw = z.hardware_session_on(&host).expect("ok").expect("needed");
+        assert_eq!(hw.listen, ["tcp/127.0.0.1:0", "tcp/172.30.2.5:0"]);
+        assert_eq!(hw.connect, ["tcp/172.30.2.9:7447"]);
+        assert_eq!(hw.hardware_interfaces, z.hardware_interfaces);
+        assert!(hw.hardware_session_on(&host).expect("ok").is_none());
+        // An unspecified address is on every interface; TLS keeps TLS.
+        z.listen = vec!["tls/0.0.0.0:7447".into()];
+        z.tls = Some(TlsSettings {
+            ca_certificate: "ca.pem".into(),
+            certificate: "c.pem".into(),
+            private_key: "k.pem".into(),
+        });
+        let hw = z.hardware_session_on(&host).expect("ok").expect("needed");
+        assert_eq!(hw.listen, ["tls/127.0.0.1:0", "tls/172.30.2.5:0"]);
+        // No restriction, or a client: none.
+        z.hardware_interfaces = vec!["*".into()];
+        assert_eq!(z.hardware_session_on(&host).expect("ok"), None);
+        z.hardware_interfaces = vec!["lo".into()];
+        z.mode = Mode::Client;
+        assert_eq!(z.hardware_session_on(&host).expect("ok"), None);
+        // A subnet the host is not on is refused as before.
+        z.mode = Mode::Peer;
+        z.hardware_interfaces = vec!["10.9.0.0/16".into()];
+        assert!(z.hardware_session_on(&host).is_err());
+    }
 
     #[test]
     fn default_builds_a_zenoh_config() {

@@ -1,4 +1,4 @@
-//! [`Bus`]: one Zenoh session per node, with typed [`Publisher`]s and [`Subscriber`]s.
+//! [`Bus`]: a node's Zenoh session (two where hardware topics need their own), with typed [`Publisher`]s and [`Subscriber`]s.
 
 use std::collections::VecDeque;
 use std::marker::PhantomData;
@@ -72,22 +72,97 @@ fn zerr(what: impl Into<String>) -> impl FnOnce(zenoh::Error) -> BusError {
 
 /// A node's connection to the system.
 pub struct Bus {
-    session: zenoh::Session,
+    main: NodeSession,
+    /// The session that carries the hardware topics when the node listens outside its
+    /// hardware interfaces ([`crate::config::ZenohSettings::hardware_session`]).
+    hardware: Option<NodeSession>,
     node_name: String,
-    zid: String,
     config: BusConfig,
     next_entity: AtomicU32,
     clock: Arc<dyn Clock>,
     directory: Arc<PublisherDirectory>,
+}
+
+/// One Zenoh session of a node, announced in the graph, feeding the node's publisher
+/// directory.
+struct NodeSession {
+    session: zenoh::Session,
+    zid: String,
     _directory_sub: zenoh::pubsub::Subscriber<()>,
     _node_token: LivelinessToken,
+}
+
+impl NodeSession {
+    async fn open(
+        node_name: &str,
+        domain_id: u32,
+        zcfg: zenoh::Config,
+        directory: &Arc<PublisherDirectory>,
+    ) -> Result<Self, BusError> {
+        let session = zenoh::open(zcfg).await.map_err(zerr("open session"))?;
+        let zid = session.zid().to_string();
+        let node = GraphEntity {
+            domain_id,
+            zid: zid.clone(),
+            node_id: 0,
+            entity_id: 0,
+            kind: EntityKind::Node,
+            namespace: String::new(),
+            node_name: node_name.to_owned(),
+            topic: None,
+            dds_type: None,
+            type_hash: None,
+        };
+        let token = session
+            .liveliness()
+            .declare_token(keys::liveliness_key(&node, ""))
+            .await
+            .map_err(zerr("declare node liveliness token"))?;
+        let cb_directory = Arc::clone(directory);
+        let directory_sub = session
+            .liveliness()
+            .declare_subscriber(format!(
+                "{}/{}/*/*/*/MP/**",
+                keys::LIVELINESS_PREFIX,
+                domain_id
+            ))
+            .history(true)
+            .callback(move |sample: zenoh::sample::Sample| {
+                let alive = sample.kind() == zenoh::sample::SampleKind::Put;
+                cb_directory.update(sample.key_expr().as_str(), alive);
+            })
+            .await
+            .map_err(zerr("declare publisher directory subscriber"))?;
+        Ok(Self {
+            session,
+            zid,
+            _directory_sub: directory_sub,
+            _node_token: token,
+        })
+    }
+
+    async fn close(self) -> Result<(), BusError> {
+        let NodeSession {
+            session,
+            _node_token,
+            _directory_sub,
+            ..
+        } = self;
+        drop(_node_token);
+        drop(_directory_sub);
+        session.close().await.map_err(zerr("close session"))
+    }
 }
 
 impl std::fmt::Debug for Bus {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Bus")
             .field("node_name", &self.node_name)
-            .field("zid", &self.zid)
+            .field("zid", &self.main.zid)
+            .field(
+                "hardware_zid",
+                &self.hardware.as_ref().map(|h| h.zid.as_str()),
+            )
             .field("domain_id", &self.config.domain_id)
             .finish()
     }
@@ -136,52 +211,35 @@ impl Bus {
         {
             return Err(BusError::NodeName(node_name.to_owned()));
         }
-        let zcfg = config.zenoh.to_zenoh()?;
-        let session = zenoh::open(zcfg).await.map_err(zerr("open session"))?;
-        let zid = session.zid().to_string();
-        let node = GraphEntity {
-            domain_id: config.domain_id,
-            zid: zid.clone(),
-            node_id: 0,
-            entity_id: 0,
-            kind: EntityKind::Node,
-            namespace: String::new(),
-            node_name: node_name.to_owned(),
-            topic: None,
-            dds_type: None,
-            type_hash: None,
-        };
-        let token = session
-            .liveliness()
-            .declare_token(keys::liveliness_key(&node, ""))
-            .await
-            .map_err(zerr("declare node liveliness token"))?;
         let directory = PublisherDirectory::new();
-        let cb_directory = Arc::clone(&directory);
-        let directory_sub = session
-            .liveliness()
-            .declare_subscriber(format!(
-                "{}/{}/*/*/*/MP/**",
-                keys::LIVELINESS_PREFIX,
-                config.domain_id
-            ))
-            .history(true)
-            .callback(move |sample: zenoh::sample::Sample| {
-                let alive = sample.kind() == zenoh::sample::SampleKind::Put;
-                cb_directory.update(sample.key_expr().as_str(), alive);
-            })
-            .await
-            .map_err(zerr("declare publisher directory subscriber"))?;
+        let zcfg = config.zenoh.to_zenoh()?;
+        let hardware_cfg = config
+            .zenoh
+            .hardware_session()?
+            .map(|z| z.to_zenoh())
+            .transpose()?;
+        let main = NodeSession::open(node_name, config.domain_id, zcfg, &directory).await?;
+        let hardware = match hardware_cfg {
+            Some(zcfg) => {
+                let h = NodeSession::open(node_name, config.domain_id, zcfg, &directory).await?;
+                tracing::info!(
+                    node = node_name,
+                    zid = h.zid,
+                    "hardware topics on a second session, on the hardware interfaces alone \
+                     (this node listens outside them)"
+                );
+                Some(h)
+            }
+            None => None,
+        };
         Ok(Self {
-            session,
+            main,
+            hardware,
             node_name: node_name.to_owned(),
-            zid,
             config: config.clone(),
             next_entity: AtomicU32::new(1),
             clock,
             directory,
-            _directory_sub: directory_sub,
-            _node_token: token,
         })
     }
 
@@ -204,7 +262,7 @@ impl Bus {
         &self.node_name
     }
     pub fn zid(&self) -> &str {
-        &self.zid
+        &self.main.zid
     }
     pub fn domain_id(&self) -> u32 {
         self.config.domain_id
@@ -214,13 +272,28 @@ impl Bus {
     }
     /// The underlying Zenoh session, for tools.
     pub fn session(&self) -> &zenoh::Session {
-        &self.session
+        &self.main.session
+    }
+
+    /// The session that carries `spec`'s topic: the hardware session for a hardware
+    /// topic when the node has one, the node's session otherwise.
+    fn session_for(&self, spec: &TopicSpec) -> &NodeSession {
+        match &self.hardware {
+            Some(h) if crate::config::is_hardware_topic(spec.name) => h,
+            _ => &self.main,
+        }
+    }
+
+    /// The Zenoh id of the session carrying hardware topics, when it is not the
+    /// node's own ([`Bus::zid`]).
+    pub fn hardware_zid(&self) -> Option<&str> {
+        self.hardware.as_ref().map(|h| h.zid.as_str())
     }
 
     fn entity(&self, kind: EntityKind, spec: &TopicSpec, dds_type: String) -> GraphEntity {
         GraphEntity {
             domain_id: self.config.domain_id,
-            zid: self.zid.clone(),
+            zid: self.session_for(spec).zid.clone(),
             node_id: 0,
             entity_id: self.next_entity.fetch_add(1, Ordering::Relaxed),
             kind,
@@ -293,6 +366,7 @@ impl Bus {
     > {
         let key = keys::data_key_raw(self.config.domain_id, spec.name, &dds_type, spec.type_hash);
         let inner = self
+            .session_for(spec)
             .session
             .declare_publisher(key.clone())
             .congestion_control(CongestionControl::Drop)
@@ -303,6 +377,7 @@ impl Bus {
         let entity = self.entity(EntityKind::Publisher, spec, dds_type);
         let token_key = keys::liveliness_key(&entity, &keys::qos_string(true, spec.qos.depth()));
         let token = self
+            .session_for(spec)
             .session
             .liveliness()
             .declare_token(token_key.clone())
@@ -386,6 +461,7 @@ impl Bus {
         let cb_shared = Arc::clone(&shared);
         let cb_clock = Arc::clone(&self.clock);
         let inner = self
+            .session_for(&spec)
             .session
             .declare_subscriber(key.clone())
             .callback(move |sample: zenoh::sample::Sample| {
@@ -424,6 +500,7 @@ impl Bus {
         let key = keys::data_key_raw(self.config.domain_id, spec.name, &dds_type, spec.type_hash);
         let clock = Arc::clone(&self.clock);
         let inner = self
+            .session_for(spec)
             .session
             .declare_subscriber(key.clone())
             .callback(move |sample: zenoh::sample::Sample| {
@@ -453,7 +530,8 @@ impl Bus {
         key: &str,
     ) -> Result<LivelinessToken, BusError> {
         let entity = self.entity(EntityKind::Subscriber, spec, dds_type);
-        self.session
+        self.session_for(spec)
+            .session
             .liveliness()
             .declare_token(keys::liveliness_key(
                 &entity,
@@ -470,6 +548,7 @@ impl Bus {
     /// [`BusError::Zenoh`] if the liveliness query fails.
     pub async fn graph(&self, timeout: Duration) -> Result<Vec<GraphEntity>, BusError> {
         let replies = self
+            .main
             .session
             .liveliness()
             .get(format!(
@@ -501,6 +580,7 @@ impl Bus {
         let state = Arc::new(WatchState::default());
         let cb_state = Arc::clone(&state);
         let inner = self
+            .main
             .session
             .liveliness()
             .declare_subscriber(format!(
@@ -529,15 +609,11 @@ impl Bus {
     /// # Errors
     /// [`BusError::Zenoh`] if closing fails.
     pub async fn close(self) -> Result<(), BusError> {
-        let Bus {
-            session,
-            _node_token,
-            _directory_sub,
-            ..
-        } = self;
-        drop(_node_token);
-        drop(_directory_sub);
-        session.close().await.map_err(zerr("close session"))
+        let Bus { main, hardware, .. } = self;
+        if let Some(h) = hardware {
+            h.close().await?;
+        }
+        main.close().await
     }
 }
 

@@ -386,3 +386,71 @@ async fn hardware_topics_stay_on_the_allowed_interfaces() {
     assert_eq!(sub.stats().received, 0);
     assert!(state_sub.try_recv().is_some(), "other topics still flow");
 }
+
+/// A node that also listens on an address outside its hardware interfaces (for the
+/// operator site, say) keeps its hardware links with a peer on this host whichever of
+/// its addresses that peer dials: its hardware topics travel on a second session that
+/// listens on loopback alone. Trial 0 makes the peer dial the outside address on
+/// purpose (before the second session, the arm's state and commands were dropped
+/// there by the `lo` rule every time); the others let multicast scouting pick, as
+/// `teleop launch` does.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_node_listening_outside_its_hardware_interfaces_keeps_same_host_hardware_links() {
+    let outside = teleop_bus::config::host_addresses()
+        .into_iter()
+        .map(|(_, ip)| ip)
+        .find(|ip| !ip.is_loopback())
+        .expect("this test needs an IPv4 address on an interface other than loopback");
+    for trial in 0..5u32 {
+        let domain_id = 9300 + trial + std::process::id() % 500 * 8;
+        let mut controller_cfg = BusConfig {
+            domain_id,
+            ..Default::default()
+        };
+        let port = teleop_bus::testing::free_port().unwrap();
+        controller_cfg.zenoh.listen =
+            vec![format!("tcp/{outside}:{port}"), "tcp/127.0.0.1:0".into()];
+        let mut sim_cfg = BusConfig {
+            domain_id,
+            ..Default::default()
+        };
+        if trial == 0 {
+            sim_cfg.zenoh.connect = vec![format!("tcp/{outside}:{port}")];
+        }
+        let controller = Bus::open("controller", &controller_cfg).await.unwrap();
+        assert!(controller.hardware_zid().is_some(), "a hardware session");
+        let sim = Bus::open("sim", &sim_cfg).await.unwrap();
+        assert!(sim.hardware_zid().is_none(), "loopback only: one session");
+        let cmd = controller
+            .publisher(&topics::HW_PR2_ARM_COMMAND)
+            .await
+            .unwrap();
+        let cmd_sub = sim
+            .subscriber_from(&topics::HW_PR2_ARM_COMMAND, "controller")
+            .await
+            .unwrap();
+        let state = sim.publisher(&topics::HW_PR2_ARM_STATE).await.unwrap();
+        let state_sub = controller
+            .subscriber(&topics::HW_PR2_ARM_STATE)
+            .await
+            .unwrap();
+        let status = controller
+            .publisher(&topics::SHADOW_JOINT_STATES)
+            .await
+            .unwrap();
+        let status_sub = sim.subscriber(&topics::SHADOW_JOINT_STATES).await.unwrap();
+        wait_connected(&cmd, &cmd_sub).await;
+        wait_connected(&state, &state_sub).await;
+        wait_connected(&status, &status_sub).await;
+        // The command's publisher is known by name (the hardware session's token),
+        // so a hardware interface that takes its controller's commands alone takes it.
+        cmd.put(&joint_state(7)).unwrap();
+        let got = cmd_sub
+            .recv_timeout(Duration::from_secs(2))
+            .await
+            .unwrap_or_else(|| panic!("trial {trial}: the command did not arrive"));
+        assert_eq!(got.msg.position[0], 7.0);
+        controller.close().await.unwrap();
+        sim.close().await.unwrap();
+    }
+}

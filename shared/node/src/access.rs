@@ -220,6 +220,9 @@ impl AccessConfig {
                 ),
                 acl.rule("ingress", &WATCH_MESSAGES, watch_keys()),
                 acl.rule("egress", &ALL_MESSAGES, non_hardware_keys()),
+                // The routers' admin space (links, sessions, routes): observers alone.
+                acl.rule("ingress", &["query"], vec![ADMIN_SPACE.into()]),
+                acl.rule("egress", &["reply"], vec![ADMIN_SPACE.into()]),
             ];
             acl.policy(&format!("observer {observer}"), observer, None, rules);
             let interfaces = (!any_interface).then_some(hardware_interfaces);
@@ -234,6 +237,9 @@ impl AccessConfig {
         acl.finish()
     }
 }
+
+/// Zenoh's admin space (`@/<zid>/router/...` of a router that enables it).
+pub const ADMIN_SPACE: &str = "@/**";
 
 /// Key expression of every hardware topic's data, in any domain.
 const HARDWARE_KEYS: &str = teleop_bus::config::HARDWARE_KEYS;
@@ -471,6 +477,17 @@ mod tests {
             .find(|s| s["id"] == "observer teleop-observer hardware")
             .unwrap();
         assert!(hw.get("interfaces").is_none(), "`*` = any interface");
+        // The admin space: observers may read it; no node, peer router or stranger.
+        assert_eq!(
+            allowed(&acl, "observer teleop-observer", "ingress", "query"),
+            [ADMIN_SPACE]
+        );
+        for subject in ["node wrist_tracker", "peer router remote-router"] {
+            assert!(
+                allowed(&acl, subject, "ingress", "query").is_empty(),
+                "{subject}"
+            );
+        }
     }
 
     #[test]

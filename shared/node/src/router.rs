@@ -21,6 +21,11 @@ pub struct RouterConfig {
     pub bus: BusConfig,
     /// Who may publish what through this router (off by default; needs TLS).
     pub access: AccessConfig,
+    /// Answer queries on Zenoh's admin space (`@/<zid>/router/**`: its links,
+    /// sessions, routes and configuration), read-only, as `zenohd` does by default;
+    /// with `access.enabled` only the observer identities may query it
+    /// (`teleop query '@/*/router/**'`).
+    pub admin_space: bool,
 }
 
 impl RouterConfig {
@@ -33,18 +38,30 @@ impl RouterConfig {
     pub fn to_zenoh(&self) -> Result<zenoh::Config, teleop_bus::config::ConfigError> {
         let z = &self.bus.zenoh;
         let mut cfg = z.to_zenoh()?;
+        let set = |cfg: &mut zenoh::Config, key: &str, value: &str| {
+            cfg.insert_json5(key, value)
+                .map_err(|e| teleop_bus::config::ConfigError::Zenoh {
+                    key: key.into(),
+                    message: e.to_string(),
+                })
+        };
+        set(
+            &mut cfg,
+            "adminspace/enabled",
+            &self.admin_space.to_string(),
+        )?;
+        set(&mut cfg, "adminspace/permissions/read", "true")?;
+        set(&mut cfg, "adminspace/permissions/write", "false")?;
         if self.access.enabled {
             let hw = teleop_bus::config::resolve_interfaces(
                 &z.hardware_interfaces,
                 &teleop_bus::config::host_addresses(),
             )?;
-            let acl = self.access.zenoh_acl(&hw).to_string();
-            cfg.insert_json5("access_control", &acl).map_err(|e| {
-                teleop_bus::config::ConfigError::Zenoh {
-                    key: "access_control".into(),
-                    message: e.to_string(),
-                }
-            })?;
+            set(
+                &mut cfg,
+                "access_control",
+                &self.access.zenoh_acl(&hw).to_string(),
+            )?;
         }
         Ok(cfg)
     }
@@ -59,6 +76,7 @@ impl Default for RouterConfig {
         Self {
             bus,
             access: AccessConfig::default(),
+            admin_space: true,
         }
     }
 }
