@@ -113,6 +113,37 @@ impl Rig<'_> {
     }
 }
 
+/// The hand's mid-range posture, with the stand-in's `--joints` and `--start` values.
+fn hand_start(limits: &teleop_hardware::safety::HandLimits) -> (Vec<f64>, String, String) {
+    let start: Vec<f64> = (0..17)
+        .map(|i| 0.5 * (limits.lower_rad[i] + limits.upper_rad[i]))
+        .collect();
+    let joints = teleop_interfaces::joints::SHADOW_FINGER_JOINTS.join(",");
+    let values = start
+        .iter()
+        .map(f64::to_string)
+        .collect::<Vec<_>>()
+        .join(",");
+    (start, joints, values)
+}
+
+/// The simulator node with the hand on the stand-in's ros2_control `controller` (in
+/// `mode`), its joint states on `/hand/joint_states`, connected to the stand-in.
+fn hand_on_ros2_control(
+    domain: u32,
+    port: u16,
+    mode: teleop_hardware_bus::HandControllerMode,
+    controller: &str,
+) -> teleop_sim_nodes::remote_sim::SimNodeConfig {
+    let mut cfg = bare_sim_config(isolated_pair(domain, port).1);
+    cfg.shadow_hand.backend = BackendKind::Ros2Control;
+    cfg.shadow_hand.ros2_control.mode = mode;
+    cfg.shadow_hand.ros2_control.ros2_control.command_topic = format!("/{controller}/commands");
+    cfg.shadow_hand.ros2_control.ros2_control.state_topic = "/hand/joint_states".into();
+    teleop_node::NodeConfig::validate(&cfg).unwrap();
+    cfg
+}
+
 fn wall_s() -> f64 {
     std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
@@ -328,23 +359,8 @@ async fn the_robot_site_drives_a_ros2_control_hand_by_position_within_its_limits
     let dir = std::env::temp_dir().join(format!("teleop-ros2-hand-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let log = dir.join("commands.jsonl");
-    let joints: Vec<String> = SHADOW_FINGER_JOINTS
-        .iter()
-        .map(|s| (*s).to_owned())
-        .collect();
     let limits = HandLimits::shadow().unwrap();
-    // Start mid-range.
-    let start: Vec<f64> = (0..17)
-        .map(|i| 0.5 * (limits.lower_rad[i] + limits.upper_rad[i]))
-        .collect();
-    let (joints_arg, start_arg) = (
-        joints.join(","),
-        start
-            .iter()
-            .map(f64::to_string)
-            .collect::<Vec<_>>()
-            .join(","),
-    );
+    let (start, joints_arg, start_arg) = hand_start(&limits);
     let standin = StandIn::start(
         &endpoint,
         domain,
@@ -366,13 +382,12 @@ async fn the_robot_site_drives_a_ros2_control_hand_by_position_within_its_limits
     )
     .await;
 
-    let mut cfg = bare_sim_config(isolated_pair(domain, port).1);
-    cfg.shadow_hand.backend = BackendKind::Ros2Control;
-    cfg.shadow_hand.ros2_control.mode = teleop_hardware_bus::HandControllerMode::Position;
-    cfg.shadow_hand.ros2_control.ros2_control.command_topic =
-        "/hand_position_controller/commands".into();
-    cfg.shadow_hand.ros2_control.ros2_control.state_topic = "/hand/joint_states".into();
-    teleop_node::NodeConfig::validate(&cfg).unwrap();
+    let cfg = hand_on_ros2_control(
+        domain,
+        port,
+        teleop_hardware_bus::HandControllerMode::Position,
+        "hand_position_controller",
+    );
     let sim_bus = Bus::open("remote_sim", &cfg.bus).await.unwrap();
     let mut sim = SimNode::new(&cfg, &sim_bus).await.unwrap();
     let ctrl_bus = Bus::open("shadow_hand_controller", &isolated_pair(domain, port).1)
@@ -469,4 +484,226 @@ async fn the_robot_site_drives_a_ros2_control_hand_by_position_within_its_limits
         at_upper > 17,
         "the over-limit posture was sent clamped at the limits"
     );
+}
+
+/// The widest range any joint covered in the states seen after `after_s`, rad, and how
+/// many states that was.
+fn spread_after(seen: &[(f64, SVector<f64, 17>)], after_s: f64) -> (f64, usize) {
+    let tail: Vec<&SVector<f64, 17>> = seen
+        .iter()
+        .filter(|(t, _)| *t > after_s)
+        .map(|(_, q)| q)
+        .collect();
+    let spread = (0..17)
+        .map(|i| {
+            let (lo, hi) = tail.iter().fold((f64::MAX, f64::MIN), |(lo, hi), q| {
+                (lo.min(q[i]), hi.max(q[i]))
+            });
+            hi - lo
+        })
+        .fold(0.0, f64::max);
+    (spread, tail.len())
+}
+
+/// The hand through an effort controller (the stand-in in `--mode effort`: each joint
+/// a damped rigid axis, inertia and damping of its own, not the simulator's model; the
+/// broadcaster at 500 Hz): the joint impedance the hand controller sends is evaluated
+/// here at every write with the newest joint state. Checked: the fingers settle on the
+/// commanded posture without a limit cycle; no effort beyond the impedance's and the
+/// hand's effort limits reaches the robot; when commands stop, the safety layer's hold
+/// becomes zero effort on this interface (it has no position loop), and that is what
+/// the robot is left with.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_robot_site_drives_a_ros2_control_hand_by_effort_closing_the_impedance_here() {
+    use teleop_hardware::safety::HandLimits;
+    use teleop_hardware::{HandCommand, HandImpedance};
+    use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
+
+    let domain = 86;
+    let port = free_port().unwrap();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let dir = std::env::temp_dir().join(format!("teleop-ros2-effort-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let log = dir.join("commands.jsonl");
+    let limits = HandLimits::shadow().unwrap();
+    let (start, joints_arg, start_arg) = hand_start(&limits);
+    let standin = StandIn::start(
+        &endpoint,
+        domain,
+        &log,
+        &[
+            "--joints",
+            &joints_arg,
+            "--start",
+            &start_arg,
+            "--mode",
+            "effort",
+            "--controller",
+            "hand_effort_controller",
+            "--state-topic",
+            "/hand/joint_states",
+            "--state-hz",
+            "500",
+            "--inertia",
+            "3e-4",
+            "--damping",
+            "0.02",
+            "--max-effort",
+            "0.5",
+        ],
+    )
+    .await;
+
+    let cfg = hand_on_ros2_control(
+        domain,
+        port,
+        teleop_hardware_bus::HandControllerMode::Effort,
+        "hand_effort_controller",
+    );
+    let sim_bus = Bus::open("remote_sim", &cfg.bus).await.unwrap();
+    let mut sim = SimNode::new(&cfg, &sim_bus).await.unwrap();
+    let ctrl_bus = Bus::open("shadow_hand_controller", &isolated_pair(domain, port).1)
+        .await
+        .unwrap();
+    let command_pub = ctrl_bus.publisher(&topics::HW_HAND_COMMAND).await.unwrap();
+    let state_sub = ctrl_bus.subscriber(&topics::HW_HAND_STATE).await.unwrap();
+    let position = |msg: &JointState| {
+        wire::joint_vector(msg, &SHADOW_FINGER_JOINTS, wire::Field::Position).unwrap()
+    };
+    // The simulator node ticks at 500 Hz (each tick writes: the impedance evaluated
+    // with the newest state); the hand controller's commands come at 100 Hz.
+    let run = async |sim: &mut SimNode, secs: f64, command: Option<HandCommand>| {
+        let mut seen: Vec<(f64, SVector<f64, 17>)> = Vec::new();
+        let t0 = Instant::now();
+        let mut k = 0u32;
+        while t0.elapsed().as_secs_f64() < secs {
+            let now = sim_bus.now_s();
+            if let Some(c) = &command
+                && k.is_multiple_of(5)
+            {
+                command_pub.put(&wire::hand_command_msg(c, now)).unwrap();
+            }
+            sim.tick(now);
+            while let Some(r) = state_sub.try_recv() {
+                seen.push((t0.elapsed().as_secs_f64(), position(&r.msg)));
+            }
+            k += 1;
+            tokio::time::sleep(Duration::from_millis(2)).await;
+        }
+        seen
+    };
+    // 1. Connected, mapped by name.
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let mut first = None;
+    while first.is_none() && Instant::now() < deadline {
+        first = run(&mut sim, 0.2, None).await.last().map(|(_, q)| *q);
+    }
+    let first = first.expect("the hand's state reached the hardware topic");
+    for (i, want) in start.iter().enumerate() {
+        assert!(
+            (first[i] - want).abs() < 1e-3,
+            "joint {i}: {} vs {want}",
+            first[i]
+        );
+    }
+    // 2. An impedance toward a posture 0.15 rad away, with the hand controller's
+    // initial gains (1 N m/rad, 0.05 N m s/rad) and a 0.3 N m cap.
+    let target = (first + SVector::<f64, 17>::repeat(0.15)).zip_zip_map(
+        &limits.lower_rad,
+        &limits.upper_rad,
+        |v, lo, hi| v.clamp(lo + 0.05, hi - 0.05),
+    );
+    let z = HandImpedance {
+        position_rad: target,
+        velocity_rad_s: SVector::zeros(),
+        stiffness_nm_rad: SVector::repeat(1.0),
+        damping_nm_s_rad: SVector::repeat(0.05),
+        feedforward_nm: SVector::zeros(),
+        max_effort_nm: SVector::repeat(0.3),
+    };
+    let seen = run(&mut sim, 3.0, Some(HandCommand::Impedance(z))).await;
+    assert_eq!(sim.state(), Lifecycle::Active, "{}", sim.last_error());
+    let (_, last) = seen.last().expect("states while driving");
+    let err = (last - target).amax();
+    // Settled: over the last 0.5 s every joint stayed within a 2 mrad band.
+    let (spread, settled_states) = spread_after(&seen, 2.5);
+    println!(
+        "effort mode: {err:.4} rad from the posture after 3 s, spread over the last 0.5 s {spread:.5} rad ({settled_states} states)"
+    );
+    assert!(err < 0.01, "the hand is {err:.4} rad from the posture");
+    assert!(
+        spread < 0.002,
+        "the fingers still move by {spread:.4} rad: a limit cycle"
+    );
+    let counter = |sim: &SimNode, name: &str| {
+        sim.counters()
+            .into_iter()
+            .find(|(n, _)| n == name)
+            .map_or(0, |(_, v)| v)
+    };
+    const LIMITED: &str = "shadow_hand.ros2_control.impedance_gains_limited";
+    // The stand-in's Python broadcaster falls short of 500 Hz: the initial gains may
+    // have been lowered a little already.
+    let limited_before = counter(&sim, LIMITED);
+    // 3. The adaptive controller's top gains (20 N m/rad, 0.3 N m s/rad), back to the
+    // first posture: closed here as they are, the fingers kept oscillating (21 mrad
+    // with this stand-in); held to what the sampled loop keeps stable, they settle.
+    let stiff = HandImpedance {
+        position_rad: first.zip_zip_map(&limits.lower_rad, &limits.upper_rad, |v, lo, hi| {
+            v.clamp(lo + 0.05, hi - 0.05)
+        }),
+        stiffness_nm_rad: SVector::repeat(20.0),
+        damping_nm_s_rad: SVector::repeat(0.3),
+        ..z
+    };
+    let seen = run(&mut sim, 3.0, Some(HandCommand::Impedance(stiff))).await;
+    let (_, last) = seen.last().expect("states while driving");
+    let err = (last - stiff.position_rad).amax();
+    let (spread, settled_states) = spread_after(&seen, 2.5);
+    println!(
+        "effort mode, top gains: {err:.4} rad from the posture after 3 s, spread {spread:.5} rad ({settled_states} states), gains lowered in {} writes ({limited_before} before)",
+        counter(&sim, LIMITED)
+    );
+    assert!(
+        counter(&sim, LIMITED) > limited_before + 100,
+        "the top gains were lowered"
+    );
+    assert!(err < 0.01, "the hand is {err:.4} rad from the posture");
+    assert!(
+        spread < 0.002,
+        "the fingers still move by {spread:.4} rad: a limit cycle"
+    );
+    let stop_wall = wall_s();
+    // 4. Commands stop: the hold becomes zero effort.
+    run(&mut sim, 0.6, None).await;
+    drop(sim);
+    drop(standin);
+    let received: Vec<Received> = std::fs::read_to_string(&log)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert!(received.len() > 500, "{} commands", received.len());
+    let mut nonzero = 0;
+    for r in &received {
+        assert_eq!(r.data.len(), 17);
+        for (i, v) in r.data.iter().enumerate() {
+            assert!(
+                v.abs() <= 0.3 + 1e-9 && v.abs() <= limits.effort_nm[i] + 1e-9,
+                "joint {} got {v} N m",
+                SHADOW_FINGER_JOINTS[i]
+            );
+            nonzero += usize::from(*v != 0.0);
+        }
+    }
+    assert!(nonzero > 17, "the impedance was sent as efforts");
+    let after: Vec<&Received> = received.iter().filter(|r| r.t > stop_wall + 0.3).collect();
+    assert!(!after.is_empty(), "the hold was sent");
+    for r in after {
+        assert!(
+            r.data.iter().all(|v| *v == 0.0),
+            "after the commands stopped: {:?}",
+            r.data
+        );
+    }
 }

@@ -4,13 +4,16 @@ Zenoh, PyPI), for tests/ros2_control.rs.
 It behaves as a robot under ros2_control with two controllers:
   * a forward command controller (--controller, default forward_velocity_controller):
     takes std_msgs/msg/Float64MultiArray on /<controller>/commands, one value per joint
-    in its `joints` order, velocities or (--mode position) positions, and (as the real
-    controller does) keeps the last command forever;
+    in its `joints` order, velocities, (--mode position) positions or (--mode effort)
+    efforts, and (as the real controller does) keeps the last command forever;
   * joint_state_broadcaster: publishes sensor_msgs/msg/JointState on --state-topic
     (default /joint_states) at 100 Hz, joints in an order of its own, with one extra joint the arm does not have.
 The "hardware" integrates the commanded velocities through a first-order lag (time
 constant --lag-s) and clamps them to its own velocity limit (--max-velocity) and the
-positions to +-3 rad.
+positions to +-3 rad. With --mode effort each joint is a rigid body on a damped axis,
+I q'' = tau - b q' (--inertia kg m^2, --damping N m s/rad, 1 ms steps), the effort
+clamped to --max-effort; the broadcaster then publishes at --state-hz (the controller
+manager's update rate).
 
 With --imposter, a third node called `imposter` also publishes /joint_states (all
 positions 3.0): a receiver that takes the broadcaster's samples only, by publisher GID,
@@ -48,7 +51,11 @@ def main() -> int:
     ap.add_argument("--lag-s", type=float, default=0.03)
     ap.add_argument("--max-velocity", type=float, default=3.0)
     ap.add_argument("--imposter", action="store_true")
-    ap.add_argument("--mode", choices=["velocity", "position"], default="velocity")
+    ap.add_argument("--mode", choices=["velocity", "position", "effort"], default="velocity")
+    ap.add_argument("--inertia", type=float, default=2e-4)
+    ap.add_argument("--damping", type=float, default=0.01)
+    ap.add_argument("--max-effort", type=float, default=1.0)
+    ap.add_argument("--state-hz", type=float, default=100.0)
     ap.add_argument("--controller", default="forward_velocity_controller")
     ap.add_argument("--state-topic", default="/joint_states")
     args = ap.parse_args()
@@ -64,7 +71,7 @@ def main() -> int:
 
     lock = threading.Lock()
     # A position controller starts holding where the robot is.
-    command = [0.0] * len(joints) if args.mode == "velocity" else list(q)
+    command = list(q) if args.mode == "position" else [0.0] * len(joints)
     log = open(args.log, "w", encoding="utf-8")
 
     def on_command(sample: zenoh.Sample) -> None:
@@ -107,7 +114,7 @@ def main() -> int:
         Float64MultiArray.deserialize(Float64MultiArray(data=[0.0]).serialize())
         print("ready", flush=True)
         v = [0.0] * len(joints)
-        dt = 0.01
+        dt = 0.01 if args.mode != "effort" else 1.0 / args.state_hz
         start = time.monotonic()
         k = 0
         while time.monotonic() - start < args.duration_s:
@@ -115,6 +122,18 @@ def main() -> int:
                 target = list(command)
             alpha = min(1.0, dt / args.lag_s)
             for i in range(len(joints)):
+                if args.mode == "effort":
+                    tau = max(-args.max_effort, min(args.max_effort, target[i]))
+                    steps = max(1, round(dt / 0.001))
+                    h = dt / steps
+                    for _ in range(steps):
+                        # Semi-implicit Euler; the axis's own damping implicit.
+                        v[i] = (v[i] + h * tau / args.inertia) / (1.0 + h * args.damping / args.inertia)
+                        q[i] += h * v[i]
+                        if abs(q[i]) > 3.0:
+                            q[i] = max(-3.0, min(3.0, q[i]))
+                            v[i] = 0.0
+                    continue
                 if args.mode == "velocity":
                     want = target[i]
                 else:

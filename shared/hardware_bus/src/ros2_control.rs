@@ -31,8 +31,8 @@ use serde::{Deserialize, Serialize};
 use teleop_bus::{Bus, BusError, Publisher, SourcePolicy, Subscriber};
 use teleop_hardware::wire::{self, Field};
 use teleop_hardware::{
-    ArmCommand, ArmHardware, ArmState, FINGER_DOF, HandCommand, HandHardware, HandState,
-    HardwareError,
+    ArmCommand, ArmHardware, ArmState, FINGER_DOF, HandCommand, HandHardware, HandImpedance,
+    HandState, HardwareError,
 };
 use teleop_interfaces::{ArmInterface, Direction, HandInterface, Publishers, QosClass, Topic};
 use teleop_msgs::{FingertipPressures, Float64MultiArray, JointState};
@@ -97,6 +97,8 @@ pub enum Ros2ControlConfigError {
     DuplicateJoint(String),
     #[error("ros2_control.{field}: must be finite and > 0, got {value}")]
     Duration { field: &'static str, value: f64 },
+    #[error("finger_inertia_kg_m2: must be in [1e-7, 1], got {0}")]
+    FingerInertia(f64),
 }
 
 /// `value` must be a ROS 2 topic name (slash-separated parts of letters, digits and `_`,
@@ -295,6 +297,8 @@ struct Link<const N: usize> {
     /// The previous positions with their stamp (velocities when the broadcaster sends
     /// none).
     previous: Option<(SVector<f64, N>, f64)>,
+    /// The broadcaster's period, s: a moving average of its stamps' differences.
+    state_period_s: Option<f64>,
     stale_after_s: f64,
     bad_states: u64,
     /// The newest refusal's text not yet taken by the owner ([`Ros2ControlArm::take_refusal`]).
@@ -374,6 +378,7 @@ impl<const N: usize> Link<N> {
             watchdog,
             latest: None,
             previous: None,
+            state_period_s: None,
             stale_after_s: cfg.stale_after_s,
             bad_states: 0,
             newest_refusal: Mutex::new(None),
@@ -403,6 +408,16 @@ impl<const N: usize> Link<N> {
         } else {
             wire::joint_vector(msg, &names, Field::Effort)?
         };
+        if let Some((_, t)) = self.previous
+            && stamp_s > t
+            && stamp_s - t < self.stale_after_s
+        {
+            let dt = stamp_s - t;
+            self.state_period_s = Some(match self.state_period_s {
+                Some(p) => p + 0.1 * (dt - p),
+                None => dt,
+            });
+        }
         self.previous = Some((position, stamp_s));
         Ok(Measured {
             received_s,
@@ -615,6 +630,13 @@ pub enum HandControllerMode {
 #[serde(deny_unknown_fields, default)]
 pub struct Ros2ControlHandConfig {
     pub mode: HandControllerMode,
+    /// The smallest joint inertia of the fingers, armature included, kg m^2 (default:
+    /// the project's Shadow hand model). In effort mode the joint impedance is a loop
+    /// closed here, sampled at the joint state broadcaster's period `T`: its gains are
+    /// held to `damping <= 0.5 I / T` and `stiffness <= 0.09 I / T^2` (natural
+    /// frequency times `T` at most 0.3), below which it stays stable; higher gains are
+    /// lowered to those, counted (`impedance_gains_limited`). docs/ros2-control.md.
+    pub finger_inertia_kg_m2: f64,
     /// The hand driver's fingertip forces (`teleop_msgs/msg/FingertipPressures`, N);
     /// empty: none, the forces read zero.
     pub tactile_topic: String,
@@ -625,6 +647,7 @@ impl Default for Ros2ControlHandConfig {
     fn default() -> Self {
         Self {
             mode: HandControllerMode::Effort,
+            finger_inertia_kg_m2: 2e-4,
             tactile_topic: String::new(),
             ros2_control: Ros2ControlConfig {
                 command_topic: "/hand_effort_controller/commands".into(),
@@ -644,6 +667,11 @@ impl Ros2ControlHandConfig {
         if !self.tactile_topic.is_empty() {
             check_topic("tactile_topic", &self.tactile_topic)?;
         }
+        if !(1e-7..=1.0).contains(&self.finger_inertia_kg_m2) {
+            return Err(Ros2ControlConfigError::FingerInertia(
+                self.finger_inertia_kg_m2,
+            ));
+        }
         Ok(())
     }
 }
@@ -659,6 +687,9 @@ pub struct Ros2ControlHand {
     last: Option<Measured<FINGER_DOF>>,
     /// Position commands (the safety layer's hold) sent as zero effort in effort mode.
     positions_as_zero_effort: u64,
+    finger_inertia_kg_m2: f64,
+    /// Writes whose impedance gains were lowered to what the sampled loop holds.
+    impedance_gains_limited: u64,
 }
 
 impl Ros2ControlHand {
@@ -672,9 +703,7 @@ impl Ros2ControlHand {
         interface: &HandInterface,
         cfg: &Ros2ControlHandConfig,
     ) -> Result<Self, Ros2ControlError> {
-        if !cfg.tactile_topic.is_empty() {
-            check_topic("tactile_topic", &cfg.tactile_topic)?;
-        }
+        cfg.validate(interface)?;
         let joints = Joints {
             name: interface.name,
             joints: &interface.joints,
@@ -711,6 +740,8 @@ impl Ros2ControlHand {
             forces: [0.0; 5],
             last: None,
             positions_as_zero_effort: 0,
+            finger_inertia_kg_m2: cfg.finger_inertia_kg_m2,
+            impedance_gains_limited: 0,
         })
     }
 
@@ -726,6 +757,10 @@ impl Ros2ControlHand {
         out.push((
             format!("{prefix}.positions_as_zero_effort"),
             self.positions_as_zero_effort,
+        ));
+        out.push((
+            format!("{prefix}.impedance_gains_limited"),
+            self.impedance_gains_limited,
         ));
         out
     }
@@ -776,7 +811,22 @@ impl HandHardware for Ros2ControlHand {
                         )));
                     }
                 };
-                let tau = z.effort_at(&m.position, &m.velocity);
+                let period_s = self.link.state_period_s.unwrap_or(self.link.stale_after_s);
+                let (held, limited) = sampled_loop_gains(z, self.finger_inertia_kg_m2, period_s);
+                if limited {
+                    if self.impedance_gains_limited == 0 {
+                        tracing::warn!(
+                            hand = name,
+                            period_ms = period_s * 1e3,
+                            max_stiffness = held.stiffness_nm_rad.max(),
+                            max_damping = held.damping_nm_s_rad.max(),
+                            "impedance gains lowered to what a loop sampled at the joint \
+                             states' period holds (counted: impedance_gains_limited)"
+                        );
+                    }
+                    self.impedance_gains_limited += 1;
+                }
+                let tau = held.effort_at(&m.position, &m.velocity);
                 self.link.send(&tau, "effort")
             }
             (HandControllerMode::Effort, HandCommand::Position(_)) => {
@@ -795,9 +845,55 @@ impl HandHardware for Ros2ControlHand {
     }
 }
 
+/// `z` with its gains held to what a joint impedance closed here, on joint states that
+/// come every `period_s`, keeps stable on a joint of inertia `inertia_kg_m2`:
+/// `damping <= 0.5 I / T`, `stiffness <= 0.09 I / T^2`; and whether any was lowered.
+pub fn sampled_loop_gains(
+    z: &HandImpedance,
+    inertia_kg_m2: f64,
+    period_s: f64,
+) -> (HandImpedance, bool) {
+    let max_damping = 0.5 * inertia_kg_m2 / period_s;
+    let max_stiffness = 0.09 * inertia_kg_m2 / (period_s * period_s);
+    let mut held = *z;
+    held.damping_nm_s_rad = z.damping_nm_s_rad.map(|d| d.min(max_damping));
+    held.stiffness_nm_rad = z.stiffness_nm_rad.map(|k| k.min(max_stiffness));
+    let limited =
+        held.damping_nm_s_rad != z.damping_nm_s_rad || held.stiffness_nm_rad != z.stiffness_nm_rad;
+    (held, limited)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_effort_loop_gains_are_held_to_the_sampling_period() {
+        let mut z = HandImpedance {
+            position_rad: SVector::zeros(),
+            velocity_rad_s: SVector::zeros(),
+            stiffness_nm_rad: SVector::repeat(1.0),
+            damping_nm_s_rad: SVector::repeat(0.05),
+            feedforward_nm: SVector::zeros(),
+            max_effort_nm: SVector::repeat(0.3),
+        };
+        // 500 Hz on the model's 2e-4 kg m^2: up to 0.05 N m s/rad and 4.5 N m/rad.
+        let (held, limited) = sampled_loop_gains(&z, 2e-4, 0.002);
+        assert!(!limited);
+        assert_eq!(held, z);
+        z.stiffness_nm_rad[3] = 20.0;
+        z.damping_nm_s_rad[4] = 0.3;
+        let (held, limited) = sampled_loop_gains(&z, 2e-4, 0.002);
+        assert!(limited);
+        assert!((held.stiffness_nm_rad[3] - 4.5).abs() < 1e-9);
+        assert!((held.damping_nm_s_rad[4] - 0.05).abs() < 1e-9);
+        assert_eq!(held.stiffness_nm_rad[0], 1.0);
+        assert_eq!(held.position_rad, z.position_rad);
+        // 100 Hz: the initial gains too.
+        let (held, _) = sampled_loop_gains(&z, 2e-4, 0.01);
+        assert!((held.damping_nm_s_rad[0] - 0.01).abs() < 1e-12);
+        assert!((held.stiffness_nm_rad[0] - 0.18).abs() < 1e-12);
+    }
     use teleop_interfaces::hardware::{PR2_ARM, SHADOW_HAND};
 
     fn arm() -> Joints<'static, 7> {
