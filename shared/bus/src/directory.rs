@@ -47,10 +47,12 @@ impl PublisherInfo {
     }
 }
 
-/// Live GID -> publisher map, fed by a liveliness subscriber of the bus.
+/// Live GID -> publisher map, fed by the liveliness subscribers of the bus (one per
+/// Zenoh session of the node: a token may be seen through either).
 #[derive(Debug, Default)]
 pub struct PublisherDirectory {
-    by_gid: Mutex<HashMap<[u8; 16], PublisherInfo>>,
+    /// Each publisher with the sessions (bit per session) that see its token now.
+    by_gid: Mutex<HashMap<[u8; 16], (PublisherInfo, u8)>>,
 }
 
 impl PublisherDirectory {
@@ -59,8 +61,16 @@ impl PublisherDirectory {
         Arc::new(Self::default())
     }
 
-    /// A token appeared (`alive`) or vanished.
+    /// A token appeared (`alive`) or vanished, seen by the node's first session.
     pub fn update(&self, key: &str, alive: bool) {
+        self.update_from(0, key, alive);
+    }
+
+    /// A token appeared (`alive`) or vanished, seen by the node's session `session`
+    /// (0-7): a publisher stays known while any session still sees its token, so a
+    /// link lost by one session does not make it a stranger to the other.
+    pub fn update_from(&self, session: u8, key: &str, alive: bool) {
+        let bit = 1u8 << (session & 7);
         let Some(e) = keys::parse_liveliness_key(key) else {
             return;
         };
@@ -72,22 +82,24 @@ impl PublisherDirectory {
             return;
         };
         if alive {
-            map.insert(
-                gid,
-                PublisherInfo {
-                    node_name: e.node_name,
-                    zid: e.zid,
-                    topic: e.topic.unwrap_or_default(),
-                },
-            );
-        } else {
-            map.remove(&gid);
+            let info = PublisherInfo {
+                node_name: e.node_name,
+                zid: e.zid,
+                topic: e.topic.unwrap_or_default(),
+            };
+            let seen_by = map.get(&gid).map_or(0, |(_, s)| *s) | bit;
+            map.insert(gid, (info, seen_by));
+        } else if let Some((_, seen_by)) = map.get_mut(&gid) {
+            *seen_by &= !bit;
+            if *seen_by == 0 {
+                map.remove(&gid);
+            }
         }
     }
 
     /// The publisher with this GID, if a live token announces it.
     pub fn lookup(&self, gid: &[u8; 16]) -> Option<PublisherInfo> {
-        self.by_gid.lock().ok()?.get(gid).cloned()
+        self.by_gid.lock().ok()?.get(gid).map(|(p, _)| p.clone())
     }
 
     /// The live publishers of `topic` (with its leading `/`), ordered by node name.
@@ -95,7 +107,12 @@ impl PublisherDirectory {
         let mut out: Vec<PublisherInfo> = self
             .by_gid
             .lock()
-            .map(|m| m.values().filter(|p| p.topic == topic).cloned().collect())
+            .map(|m| {
+                m.values()
+                    .filter(|(p, _)| p.topic == topic)
+                    .map(|(p, _)| p.clone())
+                    .collect()
+            })
             .unwrap_or_default();
         out.sort_by(|a, b| (&a.node_name, &a.zid).cmp(&(&b.node_name, &b.zid)));
         out
@@ -165,6 +182,21 @@ mod tests {
             ..e
         };
         d.update(&liveliness_key(&node, ""), true);
+        assert!(d.is_empty());
+        // Seen by both sessions of a node: known until neither sees it.
+        d.update_from(0, &key, true);
+        d.update_from(1, &key, true);
+        d.update_from(0, &key, false);
+        assert!(
+            d.lookup(&gid_for_token(&key)).is_some(),
+            "session 1 still sees it"
+        );
+        d.update_from(0, &key, false);
+        assert!(
+            d.lookup(&gid_for_token(&key)).is_some(),
+            "a repeated loss is one loss"
+        );
+        d.update_from(1, &key, false);
         assert!(d.is_empty());
     }
 }

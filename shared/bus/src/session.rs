@@ -93,7 +93,9 @@ struct NodeSession {
 }
 
 impl NodeSession {
+    /// Opens session number `index` of the node (0: its own, 1: the hardware one).
     async fn open(
+        index: u8,
         node_name: &str,
         domain_id: u32,
         zcfg: zenoh::Config,
@@ -129,7 +131,7 @@ impl NodeSession {
             .history(true)
             .callback(move |sample: zenoh::sample::Sample| {
                 let alive = sample.kind() == zenoh::sample::SampleKind::Put;
-                cb_directory.update(sample.key_expr().as_str(), alive);
+                cb_directory.update_from(index, sample.key_expr().as_str(), alive);
             })
             .await
             .map_err(zerr("declare publisher directory subscriber"))?;
@@ -218,10 +220,10 @@ impl Bus {
             .hardware_session()?
             .map(|z| z.to_zenoh())
             .transpose()?;
-        let main = NodeSession::open(node_name, config.domain_id, zcfg, &directory).await?;
+        let main = NodeSession::open(0, node_name, config.domain_id, zcfg, &directory).await?;
         let hardware = match hardware_cfg {
             Some(zcfg) => {
-                let h = NodeSession::open(node_name, config.domain_id, zcfg, &directory).await?;
+                let h = NodeSession::open(1, node_name, config.domain_id, zcfg, &directory).await?;
                 tracing::info!(
                     node = node_name,
                     zid = h.zid,
