@@ -113,35 +113,77 @@ impl Rig<'_> {
     }
 }
 
-/// The hand's mid-range posture, with the stand-in's `--joints` and `--start` values.
-fn hand_start(limits: &teleop_hardware::safety::HandLimits) -> (Vec<f64>, String, String) {
-    let start: Vec<f64> = (0..17)
-        .map(|i| 0.5 * (limits.lower_rad[i] + limits.upper_rad[i]))
-        .collect();
-    let joints = teleop_interfaces::joints::SHADOW_FINGER_JOINTS.join(",");
-    let values = start
-        .iter()
-        .map(f64::to_string)
-        .collect::<Vec<_>>()
-        .join(",");
-    (start, joints, values)
-}
-
-/// The simulator node with the hand on the stand-in's ros2_control `controller` (in
-/// `mode`), its joint states on `/hand/joint_states`, connected to the stand-in.
-fn hand_on_ros2_control(
+/// The hand's stand-in robot (a ros2_control controller in `mode` and its joint state
+/// broadcaster on `/hand/joint_states`, starting mid-range, `extra` arguments after
+/// those) and the simulator node's configuration driving it.
+struct HandStandIn {
+    standin: StandIn,
+    /// The commands the stand-in received.
+    log: std::path::PathBuf,
+    /// Where every joint starts, rad.
+    start: Vec<f64>,
     domain: u32,
     port: u16,
-    mode: teleop_hardware_bus::HandControllerMode,
-    controller: &str,
-) -> teleop_sim_nodes::remote_sim::SimNodeConfig {
-    let mut cfg = bare_sim_config(isolated_pair(domain, port).1);
-    cfg.shadow_hand.backend = BackendKind::Ros2Control;
-    cfg.shadow_hand.ros2_control.mode = mode;
-    cfg.shadow_hand.ros2_control.ros2_control.command_topic = format!("/{controller}/commands");
-    cfg.shadow_hand.ros2_control.ros2_control.state_topic = "/hand/joint_states".into();
-    teleop_node::NodeConfig::validate(&cfg).unwrap();
-    cfg
+    cfg: teleop_sim_nodes::remote_sim::SimNodeConfig,
+}
+
+impl HandStandIn {
+    async fn start(
+        domain: u32,
+        mode: teleop_hardware_bus::HandControllerMode,
+        limits: &teleop_hardware::safety::HandLimits,
+        extra: &[&str],
+    ) -> Self {
+        use teleop_hardware_bus::HandControllerMode;
+        let (mode_arg, controller) = match mode {
+            HandControllerMode::Position => ("position", "hand_position_controller"),
+            HandControllerMode::Effort => ("effort", "hand_effort_controller"),
+        };
+        let port = free_port().unwrap();
+        let dir = std::env::temp_dir().join(format!(
+            "teleop-ros2-hand-{mode_arg}-{}",
+            std::process::id()
+        ));
+        std::fs::create_dir_all(&dir).unwrap();
+        let log = dir.join("commands.jsonl");
+        let start: Vec<f64> = (0..17)
+            .map(|i| 0.5 * (limits.lower_rad[i] + limits.upper_rad[i]))
+            .collect();
+        let joints = teleop_interfaces::joints::SHADOW_FINGER_JOINTS.join(",");
+        let values = start
+            .iter()
+            .map(f64::to_string)
+            .collect::<Vec<_>>()
+            .join(",");
+        let mut args = vec![
+            "--joints",
+            &joints,
+            "--start",
+            &values,
+            "--mode",
+            mode_arg,
+            "--controller",
+            controller,
+            "--state-topic",
+            "/hand/joint_states",
+        ];
+        args.extend_from_slice(extra);
+        let standin = StandIn::start(&format!("tcp/127.0.0.1:{port}"), domain, &log, &args).await;
+        let mut cfg = bare_sim_config(isolated_pair(domain, port).1);
+        cfg.shadow_hand.backend = BackendKind::Ros2Control;
+        cfg.shadow_hand.ros2_control.mode = mode;
+        cfg.shadow_hand.ros2_control.ros2_control.command_topic = format!("/{controller}/commands");
+        cfg.shadow_hand.ros2_control.ros2_control.state_topic = "/hand/joint_states".into();
+        teleop_node::NodeConfig::validate(&cfg).unwrap();
+        Self {
+            standin,
+            log,
+            start,
+            domain,
+            port,
+            cfg,
+        }
+    }
 }
 
 fn wall_s() -> f64 {
@@ -353,41 +395,21 @@ async fn the_robot_site_drives_a_ros2_control_hand_by_position_within_its_limits
     use teleop_hardware::safety::HandLimits;
     use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 
-    let domain = 85;
-    let port = free_port().unwrap();
-    let endpoint = format!("tcp/127.0.0.1:{port}");
-    let dir = std::env::temp_dir().join(format!("teleop-ros2-hand-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let log = dir.join("commands.jsonl");
     let limits = HandLimits::shadow().unwrap();
-    let (start, joints_arg, start_arg) = hand_start(&limits);
-    let standin = StandIn::start(
-        &endpoint,
-        domain,
-        &log,
-        &[
-            "--joints",
-            &joints_arg,
-            "--start",
-            &start_arg,
-            "--mode",
-            "position",
-            "--controller",
-            "hand_position_controller",
-            "--state-topic",
-            "/hand/joint_states",
-            "--max-velocity",
-            "10",
-        ],
-    )
-    .await;
-
-    let cfg = hand_on_ros2_control(
+    let HandStandIn {
+        standin,
+        log,
+        start,
         domain,
         port,
+        cfg,
+    } = HandStandIn::start(
+        85,
         teleop_hardware_bus::HandControllerMode::Position,
-        "hand_position_controller",
-    );
+        &limits,
+        &["--max-velocity", "10"],
+    )
+    .await;
     let sim_bus = Bus::open("remote_sim", &cfg.bus).await.unwrap();
     let mut sim = SimNode::new(&cfg, &sim_bus).await.unwrap();
     let ctrl_bus = Bus::open("shadow_hand_controller", &isolated_pair(domain, port).1)
@@ -519,29 +541,19 @@ async fn the_robot_site_drives_a_ros2_control_hand_by_effort_closing_the_impedan
     use teleop_hardware::{HandCommand, HandImpedance};
     use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 
-    let domain = 86;
-    let port = free_port().unwrap();
-    let endpoint = format!("tcp/127.0.0.1:{port}");
-    let dir = std::env::temp_dir().join(format!("teleop-ros2-effort-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let log = dir.join("commands.jsonl");
     let limits = HandLimits::shadow().unwrap();
-    let (start, joints_arg, start_arg) = hand_start(&limits);
-    let standin = StandIn::start(
-        &endpoint,
+    let HandStandIn {
+        standin,
+        log,
+        start,
         domain,
-        &log,
+        port,
+        cfg,
+    } = HandStandIn::start(
+        86,
+        teleop_hardware_bus::HandControllerMode::Effort,
+        &limits,
         &[
-            "--joints",
-            &joints_arg,
-            "--start",
-            &start_arg,
-            "--mode",
-            "effort",
-            "--controller",
-            "hand_effort_controller",
-            "--state-topic",
-            "/hand/joint_states",
             "--state-hz",
             "500",
             "--inertia",
@@ -553,13 +565,6 @@ async fn the_robot_site_drives_a_ros2_control_hand_by_effort_closing_the_impedan
         ],
     )
     .await;
-
-    let cfg = hand_on_ros2_control(
-        domain,
-        port,
-        teleop_hardware_bus::HandControllerMode::Effort,
-        "hand_effort_controller",
-    );
     let sim_bus = Bus::open("remote_sim", &cfg.bus).await.unwrap();
     let mut sim = SimNode::new(&cfg, &sim_bus).await.unwrap();
     let ctrl_bus = Bus::open("shadow_hand_controller", &isolated_pair(domain, port).1)

@@ -188,10 +188,12 @@ fn in_tls_safe_runtime(name: &str) -> bool {
     false
 }
 
-/// Two site routers with TLS and the generated access control on loopback, the robot
-/// site's simulator and PR2 arm controller (running for `run_s` and `run_s - 1` s)
-/// behind the remote router, and an observer there.
+/// The deployment's authority and identities in a fresh directory (`tag`), two site
+/// routers with TLS and the generated access control on loopback, the robot site's
+/// simulator and PR2 arm controller (running for `run_s` and `run_s - 1` s) behind the
+/// remote router, and an observer there.
 struct Deployment {
+    dir: PathBuf,
     local_port: u16,
     remote_port: u16,
     local_router: zenoh::Session,
@@ -202,7 +204,26 @@ struct Deployment {
 }
 
 impl Deployment {
-    async fn start(dir: &Path, run_s: u64) -> Self {
+    async fn start(tag: &str, run_s: u64) -> Self {
+        let dir = cert_dir(tag);
+        certs::issue(
+            &dir,
+            &identities(&[
+                "local-router=127.0.0.1",
+                "remote-router=127.0.0.1",
+                "remote_sim",
+                "pr2_arm_controller",
+                "feedback_publisher",
+                "wrist_tracker",
+                "hand_inference",
+                "teleop-observer",
+                "intruder",
+            ]),
+            1,
+            false,
+        )
+        .unwrap();
+        let dir = dir.as_path();
         let (local_port, remote_port) = (free_port().unwrap(), free_port().unwrap());
         let remote_router = zenoh::open(
             router(SiteName::Remote, "remote-router", remote_port, None, dir)
@@ -244,6 +265,7 @@ impl Deployment {
         .await
         .unwrap();
         Self {
+            dir: dir.to_path_buf(),
             local_port,
             remote_port,
             local_router,
@@ -262,27 +284,9 @@ async fn only_the_operator_site_commands_the_robot_and_bad_commands_are_refused_
     ) {
         return;
     }
-    // The deployment's authority and identities; a rogue authority beside it.
-    let dir = cert_dir("ca");
-    certs::issue(
-        &dir,
-        &identities(&[
-            "local-router=127.0.0.1",
-            "remote-router=127.0.0.1",
-            "remote_sim",
-            "pr2_arm_controller",
-            "wrist_tracker",
-            "teleop-observer",
-            "intruder",
-        ]),
-        1,
-        false,
-    )
-    .unwrap();
-    let rogue = cert_dir("rogue");
-    certs::issue(&rogue, &identities(&["wrist_tracker"]), 1, false).unwrap();
-
+    // The deployment; a rogue authority beside its own.
     let Deployment {
+        dir,
         local_port,
         remote_port,
         local_router,
@@ -290,7 +294,10 @@ async fn only_the_operator_site_commands_the_robot_and_bad_commands_are_refused_
         sim_task,
         arm_task,
         observer,
-    } = Deployment::start(&dir, 16).await;
+    } = Deployment::start("ca", 16).await;
+    let rogue = cert_dir("rogue");
+    certs::issue(&rogue, &identities(&["wrist_tracker"]), 1, false).unwrap();
+
     let states = observer
         .subscriber(&topics::HW_PR2_ARM_STATE)
         .await
@@ -522,25 +529,8 @@ async fn identity_claims_are_refused_and_only_observers_read_the_admin_space() {
     if !in_tls_safe_runtime("identity_claims_are_refused_and_only_observers_read_the_admin_space") {
         return;
     }
-    let dir = cert_dir("claims");
-    certs::issue(
-        &dir,
-        &identities(&[
-            "local-router=127.0.0.1",
-            "remote-router=127.0.0.1",
-            "remote_sim",
-            "pr2_arm_controller",
-            "feedback_publisher",
-            "wrist_tracker",
-            "hand_inference",
-            "teleop-observer",
-            "intruder",
-        ]),
-        1,
-        false,
-    )
-    .unwrap();
     let Deployment {
+        dir,
         local_port,
         remote_port,
         local_router,
@@ -548,7 +538,7 @@ async fn identity_claims_are_refused_and_only_observers_read_the_admin_space() {
         sim_task,
         arm_task,
         observer,
-    } = Deployment::start(&dir, 14).await;
+    } = Deployment::start("claims", 14).await;
     let states = observer
         .subscriber(&topics::HW_PR2_ARM_STATE)
         .await

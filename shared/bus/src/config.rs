@@ -220,13 +220,7 @@ impl ZenohSettings {
             })?,
             None => zenoh::Config::default(),
         };
-        let mut set = |key: &str, value: String| {
-            cfg.insert_json5(key, &value)
-                .map_err(|e| ConfigError::Zenoh {
-                    key: key.to_owned(),
-                    message: e.to_string(),
-                })
-        };
+        let mut set = |key: &str, value: String| set_json5(&mut cfg, key, &value);
         set("mode", json_string(self.mode.as_str()))?;
         set("connect/endpoints", json_list(&self.connect))?;
         if self.mode != Mode::Client {
@@ -445,12 +439,6 @@ pub fn host_networks() -> Vec<(String, std::net::Ipv4Addr, u32)> {
 /// Key expression of every hardware topic's data, in any domain.
 pub const HARDWARE_KEYS: &str = "*/teleop/hw/**";
 
-/// Whether the topic named `name` (as in the topic table, no leading slash) is a
-/// hardware topic, one of [`HARDWARE_KEYS`].
-pub fn is_hardware_topic(name: &str) -> bool {
-    name.starts_with("teleop/hw/")
-}
-
 /// The network interfaces of this host (Linux: `/sys/class/net`); empty elsewhere.
 pub fn host_interfaces() -> Vec<String> {
     let mut out: Vec<String> = std::fs::read_dir("/sys/class/net")
@@ -551,6 +539,18 @@ pub fn hardware_acl(allowed: &[String], host: &[String]) -> Option<serde_json::V
         "subjects": [{ "id": "off_site", "interfaces": denied }],
         "policies": [{ "rules": ["hardware_topics"], "subjects": ["off_site"] }],
     }))
+}
+
+/// Sets `key` of a Zenoh configuration to the JSON5 `value`.
+///
+/// # Errors
+/// [`ConfigError::Zenoh`] naming the key Zenoh refused.
+pub fn set_json5(cfg: &mut zenoh::Config, key: &str, value: &str) -> Result<(), ConfigError> {
+    cfg.insert_json5(key, value)
+        .map_err(|e| ConfigError::Zenoh {
+            key: key.to_owned(),
+            message: e.to_string(),
+        })
 }
 
 fn json_string(s: &str) -> String {

@@ -61,11 +61,6 @@ impl PublisherDirectory {
         Arc::new(Self::default())
     }
 
-    /// A token appeared (`alive`) or vanished, seen by the node's first session.
-    pub fn update(&self, key: &str, alive: bool) {
-        self.update_from(0, key, alive);
-    }
-
     /// A token appeared (`alive`) or vanished, seen by the node's session `session`
     /// (0-7): a publisher stays known while any session still sees its token, so a
     /// link lost by one session does not make it a stranger to the other.
@@ -165,13 +160,13 @@ mod tests {
         };
         let key = liveliness_key(&e, &qos_string(true, 1));
         let d = PublisherDirectory::new();
-        d.update(&key, true);
+        d.update_from(0, &key, true);
         let info = d.lookup(&gid_for_token(&key)).expect("known");
         assert_eq!(info.node_name, "pr2_arm_controller");
         assert_eq!(info.topic, "/teleop/hw/pr2_arm/command");
         assert_eq!(info.label(), "pr2_arm_controller@aac3178e");
         assert_eq!(d.lookup(&[0; 16]), None);
-        d.update(&key, false);
+        d.update_from(0, &key, false);
         assert!(d.is_empty());
         // Node tokens are not publishers.
         let node = GraphEntity {
@@ -181,7 +176,7 @@ mod tests {
             type_hash: None,
             ..e
         };
-        d.update(&liveliness_key(&node, ""), true);
+        d.update_from(0, &liveliness_key(&node, ""), true);
         assert!(d.is_empty());
         // Seen by both sessions of a node: known until neither sees it.
         d.update_from(0, &key, true);

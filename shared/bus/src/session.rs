@@ -281,7 +281,7 @@ impl Bus {
     /// topic when the node has one, the node's session otherwise.
     fn session_for(&self, spec: &TopicSpec) -> &NodeSession {
         match &self.hardware {
-            Some(h) if crate::config::is_hardware_topic(spec.name) => h,
+            Some(h) if teleop_interfaces::topics::is_hardware_topic(spec.name) => h,
             _ => &self.main,
         }
     }

@@ -38,13 +38,7 @@ impl RouterConfig {
     pub fn to_zenoh(&self) -> Result<zenoh::Config, teleop_bus::config::ConfigError> {
         let z = &self.bus.zenoh;
         let mut cfg = z.to_zenoh()?;
-        let set = |cfg: &mut zenoh::Config, key: &str, value: &str| {
-            cfg.insert_json5(key, value)
-                .map_err(|e| teleop_bus::config::ConfigError::Zenoh {
-                    key: key.into(),
-                    message: e.to_string(),
-                })
-        };
+        let set = teleop_bus::config::set_json5;
         set(
             &mut cfg,
             "adminspace/enabled",
