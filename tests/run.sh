@@ -51,6 +51,13 @@ fi
 export TELEOP_PYTHON="$venv/bin/python"
 export TELEOP_VENV="$venv"
 
+# LeRobot, which loads the datasets of `teleop export lerobot` in their test
+# (deploy/teleop/tests/lerobot.rs), in its own environment (large: torch); its video
+# decoder, torchcodec, needs FFmpeg's libraries.
+apt_install ffmpeg command -v ffmpeg
+TELEOP_LEROBOT_PYTHON="$(bash tests/interop/lerobot-setup.sh)"
+export TELEOP_LEROBOT_PYTHON
+
 echo "== cargo fmt --check"
 cargo fmt --all -- --check
 echo "== cargo clippy -D warnings"

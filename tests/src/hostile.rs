@@ -788,6 +788,36 @@ fn bvh_targets(repo: &Path) -> anyhow::Result<Vec<Target>> {
     Ok(vec![stream, file])
 }
 
+/// The JPEG frame header reader of the dataset export (the camera views of a bag go
+/// into its videos unchanged; their size and subsampling come from this).
+fn jpeg_target() -> Target {
+    fn generate(rng: &mut Rng) -> Vec<u8> {
+        let (w, h) = (1 + rng.below(40) as u32, 1 + rng.below(30) as u32);
+        let shade = rng.below(256) as u8;
+        let image = teleop_msgs::Image {
+            header: teleop_msgs::Header::default(),
+            height: h,
+            width: w,
+            encoding: "rgb8".to_owned(),
+            is_bigendian: 0,
+            step: 3 * w,
+            data: (0..3 * w * h)
+                .map(|i| shade.wrapping_add(i as u8))
+                .collect(),
+        };
+        teleop_msgs::image_codec::jpeg_from_rgb8(&image, 50 + rng.below(50) as u8)
+            .map(|c| c.data)
+            .unwrap_or_default()
+    }
+    Target::generated(
+        "JPEG frame header (dataset export)",
+        false,
+        (23, 8),
+        generate,
+        Box::new(|b| outcome(teleop_dataset::jpeg::jpeg_info(b))),
+    )
+}
+
 fn replay_target() -> Target {
     fn generate(rng: &mut Rng) -> Vec<u8> {
         let mut out = String::from("# a recorded wrist path\nt_s,x_m,y_m,z_m,qx,qy,qz,qw\n");
@@ -901,6 +931,7 @@ pub fn targets(repo: &Path) -> anyhow::Result<Vec<Target>> {
     all.push(mcap_target()?);
     all.extend(bvh_targets(repo)?);
     all.push(replay_target());
+    all.push(jpeg_target());
     all.push(config_target(repo)?);
     Ok(all)
 }

@@ -4,6 +4,7 @@
 mod bag;
 mod certs;
 mod clock_pacer;
+mod export;
 mod foxglove;
 mod foxglove_front;
 mod inspect;
@@ -75,6 +76,9 @@ enum Command {
     /// Bags: what they hold, recovering one cut short.
     #[command(subcommand)]
     Bag(bag::BagCommand),
+    /// Bags to robot-learning datasets.
+    #[command(subcommand)]
+    Export(export::ExportCommand),
     /// A live view in Foxglove: topics served over Foxglove's WebSocket protocol (CDR
     /// with their ROS 2 definitions), for its "Open connection"; the layout is
     /// deploy/foxglove/teleop-layout.json.
@@ -172,6 +176,7 @@ async fn main() -> anyhow::Result<()> {
         Command::Record(args) => bag::record(&args, &bus_cfg).await,
         Command::Play(args) => bag::play(&args, &bus_cfg).await,
         Command::Bag(cmd) => bag::bag(&cmd),
+        Command::Export(cmd) => export::run(&cmd),
         Command::Foxglove(args) => foxglove::run(&args, &bus_cfg).await,
         Command::SweepReport(args) => sweep::run(&args),
     }
