@@ -37,10 +37,11 @@ def stamp(msg):
     return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
 
-def by_name(msg, names):
-    if len(msg.position) != len(msg.name):
+def by_name(msg, names, values=None):
+    values = msg.position if values is None else values
+    if len(values) != len(msg.name):
         return None
-    pos = dict(zip(msg.name, msg.position))
+    pos = dict(zip(msg.name, values))
     if not all(n in pos and math.isfinite(pos[n]) for n in names):
         return None
     return [pos[n] for n in names]
@@ -48,7 +49,8 @@ def by_name(msg, names):
 
 def read_bag(bag):
     files = sorted(pathlib.Path(bag).glob("*.mcap")) if pathlib.Path(bag).is_dir() else [bag]
-    streams = {k: [] for k in ["arm", "hand", "forces", "wrist", "pedals", "fingers", "top", "side"]}
+    streams = {k: [] for k in ["arm", "hand", "forces", "wrist", "pedals", "fingers",
+                            "arm_command", "hand_command", "top", "side"]}
     factory = DecoderFactory()
     decoders = {}
     for f in files:
@@ -83,6 +85,11 @@ def add(streams, t, msg, s, log_time):
         key, v = "hand", by_name(msg, FINGERS)
     elif t == "/teleop/hand/joint_targets":
         key, v = "fingers", by_name(msg, FINGERS)
+    elif t == "/teleop/hw/pr2_arm/command":
+        key, v = "arm_command", by_name(msg, PR2, msg.velocity)
+    elif t == "/teleop/hw/shadow_hand/command":
+        key = "hand_command"
+        v = by_name(msg, FINGERS) if msg.mode in ("position", "impedance") else None
     elif t == "/teleop/shadow/fingertip_pressures":
         key, v = "forces", [msg.ff, msg.mf, msg.rf, msg.lf, msg.th]
     elif t == "/teleop/wrist_pose":
@@ -160,6 +167,7 @@ def main():
     ap.add_argument("--max-age-ms", type=float, required=True)
     ap.add_argument("--min-episode-s", type=float, required=True)
     ap.add_argument("--task", required=True)
+    ap.add_argument("--action", choices=["operator", "robot"], default="operator")
     args = ap.parse_args()
 
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
@@ -167,8 +175,9 @@ def main():
 
     streams = read_bag(args.bag)
     views = [k for k in ("top", "side") if streams[k]]
-    inputs = ["arm", "hand"] + (["forces"] if streams["forces"] else []) + \
-        ["wrist", "pedals", "fingers"] + views
+    commands = ["wrist", "pedals", "fingers"] if args.action == "operator" else \
+        ["arm_command", "hand_command"]
+    inputs = ["arm", "hand"] + (["forces"] if streams["forces"] else []) + commands + views
     min_frames = max(1, math.ceil(args.min_episode_s * args.fps))
     episodes, missing = expected_frames(
         streams, args.fps, round(args.max_age_ms * 1e6), min_frames, inputs)
@@ -199,9 +208,12 @@ def main():
             item = ds[i]
             i += 1
             want_state = np.array(row["arm"] + row["hand"], dtype=np.float32)
-            clutch, enable, scale = row["pedals"]
-            want_action = np.array(row["wrist"] + [float(clutch), float(enable), scale] +
-                                   row["fingers"], dtype=np.float32)
+            if args.action == "operator":
+                clutch, enable, scale = row["pedals"]
+                want_action = np.array(row["wrist"] + [float(clutch), float(enable), scale] +
+                                       row["fingers"], dtype=np.float32)
+            else:
+                want_action = np.array(row["arm_command"] + row["hand_command"], dtype=np.float32)
             state_err = max(state_err, float(np.abs(item["observation.state"].numpy() - want_state).max()))
             action_err = max(action_err, float(np.abs(item["action"].numpy() - want_action).max()))
             check(item["episode_index"].item() == e, f"frame {i - 1}: episode {item['episode_index']} != {e}")

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use teleop_dataset::{EpisodeSource, ExportOptions, export_lerobot};
+use teleop_dataset::{ActionSource, EpisodeSource, ExportOptions, export_lerobot};
 
 #[derive(Debug, clap::Subcommand)]
 pub enum ExportCommand {
@@ -30,6 +30,13 @@ pub struct LerobotArgs {
     /// world's job, from the first engagement to the simulator's verdict), `whole`.
     #[arg(long, default_value = "clutch")]
     pub episodes: EpisodeSource,
+    /// What `action` holds: `operator` (what the operator site sent: wrist pose, clutch,
+    /// enable, motion scale, finger targets; 27) or `robot` (what the robot site's
+    /// controllers sent to the robots: the arm's 7 joint velocities and the hand's 17
+    /// position set points; 24; needs a `teleop record --all` recording at the robot
+    /// site).
+    #[arg(long, default_value = "operator")]
+    pub action: ActionSource,
     /// The episodes' task text (default by `--episodes`).
     #[arg(long)]
     pub task: Option<String>,
@@ -53,6 +60,7 @@ pub fn run(cmd: &ExportCommand) -> anyhow::Result<()> {
     let opts = ExportOptions {
         fps: args.fps,
         episodes: args.episodes,
+        action: args.action,
         task: args.task.clone(),
         max_age_s: args.max_age_ms.map(|ms| ms / 1e3),
         min_episode_s: args.min_episode_s,

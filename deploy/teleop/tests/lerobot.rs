@@ -19,8 +19,8 @@ use teleop_bag::{BagOptions, BagWriter};
 use teleop_interfaces::joints::{PR2_ARM_JOINTS, SHADOW_FINGER_JOINTS};
 use teleop_interfaces::topics;
 use teleop_msgs::{
-    CompressedImage, FingertipPressures, Header, JointState, NodeStatus, OperatorInput, Point,
-    Pose, PoseStamped, Quaternion, Time, encode,
+    CompressedImage, FingertipPressures, Header, JointCommand, JointState, NodeStatus,
+    OperatorInput, Point, Pose, PoseStamped, Quaternion, Time, encode,
 };
 
 const T0: i64 = 1_765_000_000_000_000_000;
@@ -80,6 +80,8 @@ fn write_bag(dir: &Path) -> PathBuf {
         topics::REMOTE_CAMERA_TOP.spec,
         topics::REMOTE_CAMERA_SIDE.spec,
         topics::NODE_STATUS.spec,
+        topics::HW_PR2_ARM_COMMAND.spec,
+        topics::HW_HAND_COMMAND.spec,
     ];
     let mut msgs: Vec<Msg> = Vec::new();
     let mut msgs_dup: Vec<(i64, Vec<u8>)> = Vec::new();
@@ -194,6 +196,28 @@ fn write_bag(dir: &Path) -> PathBuf {
             encode(&joints(&SHADOW_FINGER_JOINTS, t, 0.9, true)).expect("fingers"),
         );
     }
+    // The robot site's hardware commands (a `teleop record --all` recording): arm
+    // velocities at 30 Hz, hand impedance set points at 100 Hz.
+    for i in 0..180 {
+        let t = T0 + i * S / 30 + jitter(i + 7, 3_000_000);
+        let mut cmd = joints(&PR2_ARM_JOINTS, t, 0.3, true);
+        cmd.velocity = std::mem::take(&mut cmd.position);
+        push(t, 9, encode(&cmd).expect("arm command"));
+    }
+    for i in 0..600 {
+        let t = T0 + i * 10_000_000 + jitter(i + 11, 2_000_000);
+        let set = joints(&SHADOW_FINGER_JOINTS, t, 0.8, false);
+        let c = JointCommand {
+            header: header(t),
+            mode: "impedance".to_owned(),
+            name: set.name,
+            position: set.position,
+            stiffness: vec![2.0; 17],
+            damping: vec![0.1; 17],
+            ..JointCommand::default()
+        };
+        push(t, 10, encode(&c).expect("hand command"));
+    }
     for i in 0..90u32 {
         let t = T0 + i64::from(i) * S / 15 + jitter(i64::from(i), 5_000_000);
         for (topic, salt) in [(6, 0), (7, 1000)] {
@@ -247,6 +271,15 @@ fn write_bag(dir: &Path) -> PathBuf {
     };
     push(T0 + 2 * S, 6, encode(&png).expect("png"));
     push(T0 + 2 * S, 3, vec![0, 1, 0, 0, 7]);
+    // An effort command has no position set points.
+    let effort = JointCommand {
+        header: header(T0 + 2 * S),
+        mode: "effort".to_owned(),
+        name: SHADOW_FINGER_JOINTS.map(str::to_owned).to_vec(),
+        effort: vec![0.0; 17],
+        ..JointCommand::default()
+    };
+    push(T0 + 2 * S, 10, encode(&effort).expect("effort"));
 
     for (t, bytes) in msgs_dup {
         msgs.push(Msg {
@@ -304,6 +337,29 @@ fn lerobot_python() -> String {
     })
 }
 
+/// `check_lerobot.py BAG DATASET` with the export's settings of these tests, offline.
+fn check_command(python: &str, script: &Path, bag: &Path, dataset: &Path, dir: &Path) -> Command {
+    let mut c = Command::new(python);
+    c.arg(script)
+        .arg(bag)
+        .arg(dataset)
+        .args([
+            "--fps",
+            "30",
+            "--max-age-ms",
+            "100",
+            "--min-episode-s",
+            "0.5",
+            "--task",
+        ])
+        .arg(teleop_dataset::lerobot::default_task(
+            teleop_dataset::EpisodeSource::Clutch,
+        ))
+        .env("HF_HUB_OFFLINE", "1")
+        .env("HF_HOME", dir.join("hf"));
+    c
+}
+
 #[test]
 fn lerobot_loads_the_export_with_every_frame_equal_to_the_bags() {
     let dir = std::env::temp_dir().join(format!("teleop-lerobot-test-{}", std::process::id()));
@@ -358,24 +414,7 @@ fn lerobot_loads_the_export_with_every_frame_equal_to_the_bags() {
 
     let python = lerobot_python();
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/interop/check_lerobot.py");
-    let check = Command::new(&python)
-        .arg(&script)
-        .arg(&bag)
-        .arg(&out)
-        .args([
-            "--fps",
-            "30",
-            "--max-age-ms",
-            "100",
-            "--min-episode-s",
-            "0.5",
-            "--task",
-        ])
-        .arg(teleop_dataset::lerobot::default_task(
-            teleop_dataset::EpisodeSource::Clutch,
-        ))
-        .env("HF_HUB_OFFLINE", "1")
-        .env("HF_HOME", dir.join("hf"))
+    let check = check_command(&python, &script, &bag, &out, &dir)
         .output()
         .unwrap_or_else(|e| panic!("{python}: {e} (bash tests/interop/lerobot-setup.sh makes it)"));
     let stdout = String::from_utf8_lossy(&check.stdout);
@@ -392,6 +431,42 @@ fn lerobot_loads_the_export_with_every_frame_equal_to_the_bags() {
     assert_eq!(got["episodes"], 3, "{got}");
     assert_eq!(got["frames_missing"].as_u64(), Some(hole), "{got}");
     assert_eq!(got["wrong_views"], 0, "{got}");
+
+    // The robot-side commands as the action: the same episodes, the effort command
+    // refused, every action value equal to the bag's (the Python check, `--action robot`).
+    let robot = dir.join("robot");
+    let r = export(
+        &bag,
+        &robot,
+        &[
+            "--action",
+            "robot",
+            "--max-age-ms",
+            "100",
+            "--min-episode-s",
+            "0.5",
+        ],
+    );
+    assert_eq!(r["episodes"], 3, "{r}");
+    assert_eq!(r["rejected"]["/teleop/hw/shadow_hand/command"], 1, "{r}");
+    let check = check_command(&python, &script, &bag, &robot, &dir)
+        .args(["--action", "robot"])
+        .output()
+        .expect("run check_lerobot.py");
+    let stdout = String::from_utf8_lossy(&check.stdout);
+    let stderr = String::from_utf8_lossy(&check.stderr);
+    assert!(check.status.success(), "--action robot: {stdout}\n{stderr}");
+    let got: serde_json::Value =
+        serde_json::from_str(stdout.lines().last().unwrap_or("")).expect("json");
+    assert_eq!(got["frames"], r["frames"], "{got}");
+    let info: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(robot.join("meta/info.json")).expect("info"))
+            .expect("json");
+    assert_eq!(info["features"]["action"]["shape"][0], 24);
+    assert_eq!(
+        info["features"]["action"]["names"][0],
+        "r_shoulder_pan_joint_velocity_cmd"
+    );
 
     // The job's episode: from the first engagement to the simulator's verdict (the
     // status at 2.5 s), cameras left out.

@@ -9,9 +9,8 @@
 //! Features: `observation.state` = the PR2 arm chain's 7 joint positions and the
 //! Shadow hand's 17 finger joint positions (the robot site's feedback topics);
 //! `observation.fingertip_forces` = the five fingertip forces (N), when recorded;
-//! `action` = what the operator site sent: the wrist pose (position m, quaternion
-//! x y z w, UR5 base frame), the clutch and enable pedals (0/1), the motion scale, the
-//! 17 finger joint targets (rad); `observation.images.top|side` = the camera views the
+//! `action` = what the operator site sent or what the robot site's controllers sent to
+//! the robots ([`ActionSource`]); `observation.images.top|side` = the camera views the
 //! robot site sent (JPEG, unchanged, as MJPEG MP4); `source_age_ms` = for each input,
 //! how old its message was at the frame's time (ms, by source stamps).
 //!
@@ -29,7 +28,8 @@ use serde_json::json;
 use teleop_interfaces::joints::{FINGERTIPS, PR2_ARM_JOINTS, SHADOW_FINGER_JOINTS};
 use teleop_interfaces::topics;
 use teleop_msgs::{
-    CompressedImage, FingertipPressures, JointState, NodeStatus, OperatorInput, PoseStamped,
+    CompressedImage, FingertipPressures, JointCommand, JointState, NodeStatus, OperatorInput,
+    PoseStamped,
 };
 
 use crate::DatasetError;
@@ -71,12 +71,53 @@ impl std::str::FromStr for EpisodeSource {
     }
 }
 
+/// What the `action` feature holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ActionSource {
+    /// What the operator site sent (27): the wrist pose (position m, quaternion x y z
+    /// w), clutch and enable (0/1), the motion scale, the 17 finger joint targets (rad).
+    #[default]
+    Operator,
+    /// What the robot site's controllers sent to the robots (24): the PR2 arm chain's 7
+    /// joint velocities (rad/s, `/teleop/hw/pr2_arm/command`) and the hand's 17 joint
+    /// position set points (rad, `/teleop/hw/shadow_hand/command` in position or
+    /// impedance mode); in `teleop record --all` recordings at the robot site.
+    Robot,
+}
+
+impl ActionSource {
+    /// The action's width.
+    #[must_use]
+    pub fn width(self) -> usize {
+        match self {
+            Self::Operator => 27,
+            Self::Robot => 24,
+        }
+    }
+}
+
+impl std::str::FromStr for ActionSource {
+    type Err = DatasetError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "operator" => Ok(Self::Operator),
+            "robot" => Ok(Self::Robot),
+            other => Err(DatasetError::Config(format!(
+                "action: unknown source {other:?} (operator or robot)"
+            ))),
+        }
+    }
+}
+
 /// How to export.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ExportOptions {
     /// Frames per second.
     pub fps: u32,
     pub episodes: EpisodeSource,
+    /// What `action` holds.
+    pub action: ActionSource,
     /// Each episode's task text (default: by episode source, see [`default_task`]).
     pub task: Option<String>,
     /// The oldest a message may be at a frame's time, s, for every input (default per
@@ -99,6 +140,7 @@ impl Default for ExportOptions {
         Self {
             fps: 30,
             episodes: EpisodeSource::Clutch,
+            action: ActionSource::Operator,
             task: None,
             max_age_s: None,
             min_episode_s: 0.5,
@@ -197,6 +239,8 @@ const FORCES: &str = "fingertip_forces";
 const WRIST: &str = "wrist_pose";
 const PEDALS: &str = "operator_input";
 const FINGERS: &str = "finger_targets";
+const ARM_COMMAND: &str = "arm_command";
+const HAND_COMMAND: &str = "hand_command";
 const VIEWS: [(&str, &str); 2] = [
     ("top", "observation.images.top"),
     ("side", "observation.images.side"),
@@ -225,6 +269,8 @@ struct Recording {
     wrist: Stream<Vec<f32>>,
     pedals: Stream<Pedals>,
     fingers: Stream<Vec<f32>>,
+    arm_command: Stream<Vec<f32>>,
+    hand_command: Stream<Vec<f32>>,
     views: [Stream<Vec<u8>>; 2],
     view_info: [Option<JpegInfo>; 2],
     job: Stream<JobStanding>,
@@ -256,28 +302,25 @@ fn finite(values: impl IntoIterator<Item = f64>) -> Result<Vec<f32>, String> {
 }
 
 fn positions_by_name(js: &JointState, names: &[&str]) -> Result<Vec<f32>, String> {
-    if js.position.len() != js.name.len() {
-        return Err(format!(
-            "{} names but {} positions",
-            js.name.len(),
-            js.position.len()
-        ));
+    by_name(&js.name, &js.position, "positions", names)
+}
+
+/// `values` (one per name of `have`) in the order of `want`.
+fn by_name(have: &[String], values: &[f64], what: &str, want: &[&str]) -> Result<Vec<f32>, String> {
+    if values.len() != have.len() {
+        return Err(format!("{} names but {} {what}", have.len(), values.len()));
     }
-    finite(names.iter().map(|want| {
-        js.name
-            .iter()
-            .position(|n| n == want)
-            .map_or(f64::NAN, |i| js.position[i])
+    finite(want.iter().map(|w| {
+        have.iter()
+            .position(|n| n == w)
+            .map_or(f64::NAN, |i| values[i])
     }))
-    .map_err(|e| {
-        match names
-            .iter()
-            .find(|want| !js.name.iter().any(|n| n == *want))
-        {
+    .map_err(
+        |e| match want.iter().find(|w| !have.iter().any(|n| n == *w)) {
             Some(missing) => format!("joint {missing} missing"),
             None => e,
-        }
-    })
+        },
+    )
 }
 
 fn decode<T: teleop_msgs::Message>(data: &[u8]) -> Result<T, String> {
@@ -303,6 +346,8 @@ fn read_recording(
         topic_name(&topics::REMOTE_CAMERA_SIDE.spec),
     ];
     let status_t = topic_name(&topics::NODE_STATUS.spec);
+    let arm_command_t = topic_name(&topics::HW_PR2_ARM_COMMAND.spec);
+    let hand_command_t = topic_name(&topics::HW_HAND_COMMAND.spec);
 
     let mut arm = Vec::new();
     let mut hand = Vec::new();
@@ -313,6 +358,8 @@ fn read_recording(
     let mut views: [Vec<(u64, i64, Vec<u8>)>; 2] = [Vec::new(), Vec::new()];
     let mut view_info: [Option<JpegInfo>; 2] = [None, None];
     let mut job = Vec::new();
+    let mut arm_command = Vec::new();
+    let mut hand_command = Vec::new();
 
     for file in files {
         let buf = std::fs::read(&file).map_err(|e| DatasetError::io(&file, e))?;
@@ -393,6 +440,26 @@ fn read_recording(
                         Some(_) => {}
                     }
                     views[i].push((log, stamp_ns(&c.header)?, c.data));
+                } else if topic == arm_command_t {
+                    let js: JointState = decode(&m.data)?;
+                    arm_command.push((
+                        log,
+                        stamp_ns(&js.header)?,
+                        by_name(&js.name, &js.velocity, "velocities", &PR2_ARM_JOINTS)?,
+                    ));
+                } else if topic == hand_command_t {
+                    let c: JointCommand = decode(&m.data)?;
+                    if c.mode != "position" && c.mode != "impedance" {
+                        return Err(format!(
+                            "mode {:?} has no position set points (position or impedance)",
+                            c.mode
+                        ));
+                    }
+                    hand_command.push((
+                        log,
+                        stamp_ns(&c.header)?,
+                        by_name(&c.name, &c.position, "positions", &SHADOW_FINGER_JOINTS)?,
+                    ));
                 } else if topic == status_t {
                     let s: NodeStatus = decode(&m.data)?;
                     if s.node_name == "remote_sim"
@@ -421,6 +488,8 @@ fn read_recording(
         views: [Stream::from_arrivals(top), Stream::from_arrivals(side)],
         view_info,
         job: Stream::from_arrivals(job),
+        arm_command: Stream::from_arrivals(arm_command),
+        hand_command: Stream::from_arrivals(hand_command),
     })
 }
 
@@ -552,6 +621,8 @@ enum Input {
     Wrist,
     Pedals,
     Fingers,
+    ArmCommand,
+    HandCommand,
     View(usize),
 }
 
@@ -564,6 +635,8 @@ impl Input {
             Input::Wrist => WRIST,
             Input::Pedals => PEDALS,
             Input::Fingers => FINGERS,
+            Input::ArmCommand => ARM_COMMAND,
+            Input::HandCommand => HAND_COMMAND,
             Input::View(i) => VIEWS[i].0,
         }
     }
@@ -575,6 +648,8 @@ impl Input {
             Input::Wrist => topics::WRIST_POSE.spec.rate_hz,
             Input::Pedals => topics::OPERATOR_INPUT.spec.rate_hz,
             Input::Fingers => topics::HAND_JOINT_TARGETS.spec.rate_hz,
+            Input::ArmCommand => topics::HW_PR2_ARM_COMMAND.spec.rate_hz,
+            Input::HandCommand => topics::HW_HAND_COMMAND.spec.rate_hz,
             Input::View(_) => topics::REMOTE_CAMERA_TOP.spec.rate_hz,
         }
     }
@@ -586,6 +661,8 @@ impl Input {
             Input::Wrist => topics::WRIST_POSE.spec,
             Input::Pedals => topics::OPERATOR_INPUT.spec,
             Input::Fingers => topics::HAND_JOINT_TARGETS.spec,
+            Input::ArmCommand => topics::HW_PR2_ARM_COMMAND.spec,
+            Input::HandCommand => topics::HW_HAND_COMMAND.spec,
             Input::View(0) => topics::REMOTE_CAMERA_TOP.spec,
             Input::View(_) => topics::REMOTE_CAMERA_SIDE.spec,
         })
@@ -603,6 +680,8 @@ fn max_age_ns(input: Input, opts: &ExportOptions) -> i64 {
 /// The frames of every episode, column by column.
 #[derive(Debug, Default)]
 struct Frames {
+    /// Values per row of `action`.
+    action_width: usize,
     state: Vec<f32>,
     forces: Vec<f32>,
     action: Vec<f32>,
@@ -704,13 +783,22 @@ pub fn export_lerobot(
     }
     // Features: the required inputs; fingertip forces and views when every bag has them.
     for rec in &recordings {
-        for (input, empty) in [
-            (Input::Arm, rec.arm.is_empty()),
-            (Input::Hand, rec.hand.is_empty()),
-            (Input::Wrist, rec.wrist.is_empty()),
-            (Input::Pedals, rec.pedals.is_empty()),
-            (Input::Fingers, rec.fingers.is_empty()),
-        ] {
+        let required = match opts.action {
+            ActionSource::Operator => vec![
+                (Input::Arm, rec.arm.is_empty()),
+                (Input::Hand, rec.hand.is_empty()),
+                (Input::Wrist, rec.wrist.is_empty()),
+                (Input::Pedals, rec.pedals.is_empty()),
+                (Input::Fingers, rec.fingers.is_empty()),
+            ],
+            ActionSource::Robot => vec![
+                (Input::Arm, rec.arm.is_empty()),
+                (Input::Hand, rec.hand.is_empty()),
+                (Input::ArmCommand, rec.arm_command.is_empty()),
+                (Input::HandCommand, rec.hand_command.is_empty()),
+            ],
+        };
+        for (input, empty) in required {
             if empty {
                 return Err(DatasetError::Bag(format!(
                     "{}: no usable message of {} ({}){}",
@@ -751,7 +839,10 @@ pub fn export_lerobot(
     if with_forces {
         inputs.push(Input::Forces);
     }
-    inputs.extend([Input::Wrist, Input::Pedals, Input::Fingers]);
+    match opts.action {
+        ActionSource::Operator => inputs.extend([Input::Wrist, Input::Pedals, Input::Fingers]),
+        ActionSource::Robot => inputs.extend([Input::ArmCommand, Input::HandCommand]),
+    }
     inputs.extend(view_keys.iter().map(|&i| Input::View(i)));
     let ages: Vec<i64> = inputs.iter().map(|&i| max_age_ns(i, opts)).collect();
     let task = opts
@@ -771,12 +862,15 @@ pub fn export_lerobot(
             stats: ImageStats::default(),
         })
         .collect();
-    let mut frames = Frames::default();
+    let mut frames = Frames {
+        action_width: opts.action.width(),
+        ..Frames::default()
+    };
     let mut all_numeric = NumericStats::default();
     let mut episodes: Vec<EpisodeRow> = Vec::new();
     let mut data_index = FileIndex::default();
     let mut data_rows_before_file = 0usize;
-    let row_bytes = 4 * (24 + 5 + 27 + inputs.len()) + 4 + 8 * 4;
+    let row_bytes = 4 * (24 + 5 + opts.action.width() + inputs.len()) + 4 + 8 * 4;
     let min_frames = ((opts.min_episode_s * f64::from(opts.fps)).ceil() as usize).max(1);
     let frame_period_s = 1.0 / f64::from(opts.fps);
 
@@ -812,6 +906,8 @@ pub fn export_lerobot(
                         Input::Wrist => rec.wrist.stamps(),
                         Input::Pedals => rec.pedals.stamps(),
                         Input::Fingers => rec.fingers.stamps(),
+                        Input::ArmCommand => rec.arm_command.stamps(),
+                        Input::HandCommand => rec.hand_command.stamps(),
                         Input::View(i) => rec.views[i].stamps(),
                     };
                     let pick = newest_at(stamps, t, ages[j]);
@@ -917,18 +1013,30 @@ pub fn export_lerobot(
                             .extend_from_slice(&rec.forces.values()[get(Input::Forces)]);
                     }
                     let action_start = frames.action.len();
-                    frames
-                        .action
-                        .extend_from_slice(&rec.wrist.values()[get(Input::Wrist)]);
-                    let p = rec.pedals.values()[get(Input::Pedals)];
-                    frames.action.extend_from_slice(&[
-                        f32::from(u8::from(p.clutch)),
-                        f32::from(u8::from(p.enable)),
-                        p.scale,
-                    ]);
-                    frames
-                        .action
-                        .extend_from_slice(&rec.fingers.values()[get(Input::Fingers)]);
+                    match opts.action {
+                        ActionSource::Operator => {
+                            frames
+                                .action
+                                .extend_from_slice(&rec.wrist.values()[get(Input::Wrist)]);
+                            let p = rec.pedals.values()[get(Input::Pedals)];
+                            frames.action.extend_from_slice(&[
+                                f32::from(u8::from(p.clutch)),
+                                f32::from(u8::from(p.enable)),
+                                p.scale,
+                            ]);
+                            frames
+                                .action
+                                .extend_from_slice(&rec.fingers.values()[get(Input::Fingers)]);
+                        }
+                        ActionSource::Robot => {
+                            frames.action.extend_from_slice(
+                                &rec.arm_command.values()[get(Input::ArmCommand)],
+                            );
+                            frames.action.extend_from_slice(
+                                &rec.hand_command.values()[get(Input::HandCommand)],
+                            );
+                        }
+                    }
                     frames.ages.extend_from_slice(&frame_ages[a + k]);
                     all_numeric.add("observation.state", &frames.state[state_start..]);
                     all_numeric.add("action", &frames.action[action_start..]);
@@ -1105,25 +1213,36 @@ pub fn export_lerobot(
             json!({"dtype": "float32", "shape": [5], "names": names(FINGERTIPS.iter().map(|f| format!("{f}_force_n")).collect())}),
         );
     }
-    let mut action_names: Vec<String> = [
-        "wrist_x_m",
-        "wrist_y_m",
-        "wrist_z_m",
-        "wrist_qx",
-        "wrist_qy",
-        "wrist_qz",
-        "wrist_qw",
-        "clutch",
-        "enable",
-        "motion_scale",
-    ]
-    .iter()
-    .map(|s| (*s).to_owned())
-    .collect();
-    action_names.extend(SHADOW_FINGER_JOINTS.iter().map(|j| format!("{j}_target")));
+    let action_names: Vec<String> = match opts.action {
+        ActionSource::Operator => [
+            "wrist_x_m",
+            "wrist_y_m",
+            "wrist_z_m",
+            "wrist_qx",
+            "wrist_qy",
+            "wrist_qz",
+            "wrist_qw",
+            "clutch",
+            "enable",
+            "motion_scale",
+        ]
+        .iter()
+        .map(|s| (*s).to_owned())
+        .chain(SHADOW_FINGER_JOINTS.iter().map(|j| format!("{j}_target")))
+        .collect(),
+        ActionSource::Robot => PR2_ARM_JOINTS
+            .iter()
+            .map(|j| format!("{j}_velocity_cmd"))
+            .chain(
+                SHADOW_FINGER_JOINTS
+                    .iter()
+                    .map(|j| format!("{j}_position_cmd")),
+            )
+            .collect(),
+    };
     features.insert(
         "action".into(),
-        json!({"dtype": "float32", "shape": [27], "names": names(action_names)}),
+        json!({"dtype": "float32", "shape": [opts.action.width()], "names": names(action_names)}),
     );
     features.insert(
         "source_age_ms".into(),
@@ -1215,6 +1334,7 @@ fn flush_data(
     if rows == 0 {
         return Ok(0);
     }
+    let action_width = frames.action_width;
     let path = index.path(out, "data", "parquet");
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir).map_err(|e| DatasetError::io(dir, e))?;
@@ -1230,7 +1350,7 @@ fn flush_data(
             list(&frames.forces, 5),
         ));
     }
-    cols.push(Column::new("action", list(&frames.action, 27)));
+    cols.push(Column::new("action", list(&frames.action, action_width)));
     cols.push(Column::new(
         "source_age_ms",
         list(&frames.ages, inputs.len()),

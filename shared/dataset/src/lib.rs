@@ -11,7 +11,7 @@ pub mod lerobot;
 pub mod mp4;
 pub mod table;
 
-pub use lerobot::{EpisodeSource, ExportOptions, ExportSummary, export_lerobot};
+pub use lerobot::{ActionSource, EpisodeSource, ExportOptions, ExportSummary, export_lerobot};
 
 use std::path::Path;
 
