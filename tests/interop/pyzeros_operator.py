@@ -40,9 +40,28 @@ def main() -> int:
         hand = pyzeros.Node(name="hand_inference", session=session, domain_id=args.domain)
         pose_pub = pyzeros.Pub(PoseStamped, "/teleop/wrist_pose", session=tracker)
         input_pub = pyzeros.Pub(OperatorInput, "/teleop/operator_input", session=tracker)
-        # Compile the serializers (pyzeros does it on first use) before the clock runs.
-        PoseStamped().serialize()
-        OperatorInput().serialize()
+        # Compile the serializers (pyzeros does it on first use, behind a lock another
+        # process may hold) before the clock runs: one message of each type through the
+        # whole publishing path, the pedals released. Serializing alone left the first
+        # publish to compile (17 s once, on a cold cache beside the decoding test): the
+        # station's clock ran out after one pose.
+        now = time.time_ns()
+        first = Header(
+            stamp=Time(sec=now // 1_000_000_000, nanosec=now % 1_000_000_000),
+            frame_id="tracker",
+        )
+        pose_pub.publish(
+            PoseStamped(
+                header=first,
+                pose=Pose(
+                    position=Point(x=0.0, y=0.0, z=1.0),
+                    orientation=Quaternion(x=0.0, y=0.0, z=0.0, w=1.0),
+                ),
+            )
+        )
+        input_pub.publish(
+            OperatorInput(header=first, clutch=False, enable=False, motion_scale=1.0)
+        )
         print("ready", flush=True)
         start = time.monotonic()
         k = 0

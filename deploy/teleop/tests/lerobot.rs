@@ -533,5 +533,20 @@ fn bad_exports_are_refused_by_name() {
     ]);
     assert!(!ok && err.contains("/teleop/pr2/joint_states"), "{err}");
     assert!(!Path::new(out).exists(), "nothing left behind");
+    // Found wanting after the dataset was begun (no run of complete frames lasts 100 s):
+    // refused, and what was begun is gone.
+    std::fs::create_dir_all(dir.join("full")).expect("dir");
+    let full = write_bag(&dir.join("full"));
+    let (ok, err) = run(&[
+        "export",
+        "lerobot",
+        full.to_str().expect("utf-8"),
+        "--out",
+        out,
+        "--min-episode-s",
+        "100",
+    ]);
+    assert!(!ok && err.contains("no episode to export"), "{err}");
+    assert!(!Path::new(out).exists(), "nothing left behind");
     let _ = std::fs::remove_dir_all(&dir);
 }

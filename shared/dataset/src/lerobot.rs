@@ -752,7 +752,8 @@ struct VideoOut {
     stats: ImageStats,
 }
 
-/// Writes a LeRobotDataset v3.0 at `out` (which must not exist) from `bags`.
+/// Writes a LeRobotDataset v3.0 at `out` (which must not exist) from `bags`; on an
+/// error nothing is left at `out`.
 ///
 /// # Errors
 /// [`DatasetError`] naming the bag, the input or the option at fault: a bag without a
@@ -763,7 +764,6 @@ pub fn export_lerobot(
     opts: &ExportOptions,
 ) -> Result<ExportSummary, DatasetError> {
     opts.validate()?;
-    let began = std::time::Instant::now();
     if bags.is_empty() {
         return Err(DatasetError::Config("no bag given".to_owned()));
     }
@@ -773,6 +773,20 @@ pub fn export_lerobot(
             out.display()
         )));
     }
+    let written = export_into(bags, out, opts);
+    if written.is_err() {
+        // A dataset cut short is no dataset.
+        let _ = std::fs::remove_dir_all(out);
+    }
+    written
+}
+
+fn export_into(
+    bags: &[PathBuf],
+    out: &Path,
+    opts: &ExportOptions,
+) -> Result<ExportSummary, DatasetError> {
+    let began = std::time::Instant::now();
     let mut summary = ExportSummary {
         bags: bags.len(),
         ..ExportSummary::default()
@@ -1074,7 +1088,6 @@ pub fn export_lerobot(
         }
     }
     if episodes.is_empty() {
-        let _ = std::fs::remove_dir_all(out);
         return Err(DatasetError::Config(format!(
             "no episode to export: {} interval(s) found by {:?}, {} frame(s) missing an input ({:?}), {} in runs shorter than {} s",
             summary.intervals,
