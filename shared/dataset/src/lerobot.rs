@@ -335,19 +335,16 @@ fn read_recording(
 ) -> Result<Recording, DatasetError> {
     let files = teleop_bag::mcap_files(path)
         .map_err(|e| DatasetError::Bag(format!("{}: {e}", path.display())))?;
-    let arm_t = topic_name(&topics::PR2_JOINT_STATES.spec);
-    let hand_t = topic_name(&topics::SHADOW_JOINT_STATES.spec);
-    let forces_t = topic_name(&topics::FINGERTIP_PRESSURES.spec);
-    let wrist_t = topic_name(&topics::WRIST_POSE.spec);
-    let pedals_t = topic_name(&topics::OPERATOR_INPUT.spec);
-    let fingers_t = topic_name(&topics::HAND_JOINT_TARGETS.spec);
-    let views_t = [
-        topic_name(&topics::REMOTE_CAMERA_TOP.spec),
-        topic_name(&topics::REMOTE_CAMERA_SIDE.spec),
-    ];
+    let arm_t = Input::Arm.topic();
+    let hand_t = Input::Hand.topic();
+    let forces_t = Input::Forces.topic();
+    let wrist_t = Input::Wrist.topic();
+    let pedals_t = Input::Pedals.topic();
+    let fingers_t = Input::Fingers.topic();
+    let views_t = [Input::View(0).topic(), Input::View(1).topic()];
     let status_t = topic_name(&topics::NODE_STATUS.spec);
-    let arm_command_t = topic_name(&topics::HW_PR2_ARM_COMMAND.spec);
-    let hand_command_t = topic_name(&topics::HW_HAND_COMMAND.spec);
+    let arm_command_t = Input::ArmCommand.topic();
+    let hand_command_t = Input::HandCommand.topic();
 
     let mut arm = Vec::new();
     let mut hand = Vec::new();
@@ -641,20 +638,14 @@ impl Input {
         }
     }
     fn rate_hz(self) -> f64 {
-        match self {
-            Input::Arm => topics::PR2_JOINT_STATES.spec.rate_hz,
-            Input::Hand => topics::SHADOW_JOINT_STATES.spec.rate_hz,
-            Input::Forces => topics::FINGERTIP_PRESSURES.spec.rate_hz,
-            Input::Wrist => topics::WRIST_POSE.spec.rate_hz,
-            Input::Pedals => topics::OPERATOR_INPUT.spec.rate_hz,
-            Input::Fingers => topics::HAND_JOINT_TARGETS.spec.rate_hz,
-            Input::ArmCommand => topics::HW_PR2_ARM_COMMAND.spec.rate_hz,
-            Input::HandCommand => topics::HW_HAND_COMMAND.spec.rate_hz,
-            Input::View(_) => topics::REMOTE_CAMERA_TOP.spec.rate_hz,
-        }
+        self.spec().rate_hz
     }
     fn topic(self) -> String {
-        topic_name(&match self {
+        topic_name(&self.spec())
+    }
+    /// The input's topic in the table.
+    fn spec(self) -> teleop_interfaces::TopicSpec {
+        match self {
             Input::Arm => topics::PR2_JOINT_STATES.spec,
             Input::Hand => topics::SHADOW_JOINT_STATES.spec,
             Input::Forces => topics::FINGERTIP_PRESSURES.spec,
@@ -665,7 +656,7 @@ impl Input {
             Input::HandCommand => topics::HW_HAND_COMMAND.spec,
             Input::View(0) => topics::REMOTE_CAMERA_TOP.spec,
             Input::View(_) => topics::REMOTE_CAMERA_SIDE.spec,
-        })
+        }
     }
 }
 
