@@ -105,6 +105,12 @@ pub struct ArmNode {
     hw: BusArm<7>,
     ctrl: ArmController,
     wrist: Option<WristSample>,
+    /// The capture stamp of `wrist` (its header), ns.
+    wrist_stamp_ns: u64,
+    /// The capture stamp of the wrist pose the newest engagement took as the operator's
+    /// reference, ns (0 before the first): in the status (`arm.engaged_from_stamp_ns`)
+    /// so that an observer can measure the arm against the reference it really took.
+    engaged_from_stamp_ns: u64,
     operator: Option<OperatorSample>,
     hardware_errors: u64,
     rejected_frame_ids: u64,
@@ -146,6 +152,8 @@ impl ArmNode {
             hw: BusArm::new(bus, &PR2_ARM, cfg.hardware_timeout_s).await?,
             ctrl,
             wrist: None,
+            wrist_stamp_ns: 0,
+            engaged_from_stamp_ns: 0,
             operator: None,
             hardware_errors: 0,
             rejected_frame_ids: 0,
@@ -211,6 +219,7 @@ impl Node for ArmNode {
                     received_s: r.receive_time_s(),
                     pose: isometry(&r.msg.pose),
                 });
+                self.wrist_stamp_ns = u64::try_from(r.msg.header.stamp.as_nanos()).unwrap_or(0);
             }
         }
         if let Some(r) = self.input_sub.poll() {
@@ -248,7 +257,11 @@ impl Node for ArmNode {
                 self.hardware_ok = true;
                 self.errors.resolved("hardware", now_s);
                 let latched = self.ctrl.latched();
+                let engagements = self.ctrl.counters().engagements;
                 let command = self.ctrl.step(now_s, &inputs, &state).command;
+                if self.ctrl.counters().engagements > engagements {
+                    self.engaged_from_stamp_ns = self.wrist_stamp_ns;
+                }
                 // What the operator's display shows next to the Fault state.
                 if let Some(r) = self.ctrl.latched()
                     && latched != Some(r)
@@ -313,6 +326,10 @@ impl Node for ArmNode {
             self.rejected_frame_ids,
         ));
         counters.push(("arm.bad_hardware_states".into(), self.hw.bad_states()));
+        counters.push((
+            teleop_interfaces::status::arm::ENGAGED_FROM_STAMP_NS.into(),
+            self.engaged_from_stamp_ns,
+        ));
         counters.extend(self.wrist_sub.named_counters());
         counters.extend(self.input_sub.named_counters());
         self.wrist_ages.named(&mut counters);

@@ -109,19 +109,20 @@ impl JobOutcome {
     /// From the simulator's final status counters, if it judged a job.
     #[must_use]
     pub fn from_counters(counter: impl Fn(&str) -> Option<u64>) -> Option<Self> {
-        let succeeded = counter("job.succeeded")? > 0;
-        let failure = ["fell_off_table", "timed_out"]
+        use teleop_interfaces::status::job;
+        let succeeded = counter(job::SUCCEEDED)? > 0;
+        let failure = job::FAILURES
             .into_iter()
-            .find(|f| counter(&format!("job.failed.{f}")).unwrap_or(0) > 0)
+            .find(|f| counter(&format!("{}{f}", job::FAILED_PREFIX)).unwrap_or(0) > 0)
             .map(str::to_owned);
         Some(Self {
-            lifted: counter("job.lifted").unwrap_or(0) > 0,
+            lifted: counter(job::LIFTED).unwrap_or(0) > 0,
             succeeded,
             completion_s: succeeded
-                .then(|| counter("job.completion_ms").map(|ms| ms as f64 / 1e3))
+                .then(|| counter(job::COMPLETION_MS).map(|ms| ms as f64 / 1e3))
                 .flatten(),
             failure,
-            judge_errors: counter("job.judge_errors").unwrap_or(0),
+            judge_errors: counter(job::JUDGE_ERRORS).unwrap_or(0),
         })
     }
 
@@ -246,6 +247,9 @@ pub struct RunReport {
     pub camera_best_fit_delay_ms: f64,
     pub camera_error_at_best_delay_m: f64,
     pub clutch_engagements: u64,
+    /// Engagements measured from the references the arm controller took (its
+    /// `arm.engaged_from_stamp_ns`), the others from the clutch press.
+    pub arm_reference_engagements: u64,
     /// The PR2 error of the clutched samples in which the arm controller's newest status
     /// said it was Active (following the operator, not stopped), m: the tracking, apart
     /// from what the operator moved while a safety stop held the arm.
@@ -491,6 +495,12 @@ pub struct Recorder {
     pr2_following: Vec<f64>,
     /// Whether the arm controller's newest status says Active.
     arm_active: bool,
+    /// The capture stamp of the wrist pose the arm's newest engagement took as its
+    /// reference (its status counter), ns.
+    arm_engaged_from_ns: Option<u64>,
+    /// The newest PR2 palm positions by stamp, s (for the arm's reference at its
+    /// engagement).
+    recent_palms: std::collections::VecDeque<(f64, Vector3<f64>)>,
     pr2_delay: DelayFit,
     camera_delay: DelayFit,
     camera_pos: Vec<f64>,
@@ -501,6 +511,8 @@ pub struct Recorder {
     force_n: usize,
 }
 
+/// PR2 states kept for the arm's reference at an engagement (about 1 s at 100 Hz).
+const RECENT_PALMS: usize = 128;
 const STAGE_WRIST: usize = 0;
 const STAGE_CAMERA: usize = 1;
 const STAGE_TARGETS: usize = 2;
@@ -560,6 +572,8 @@ impl Recorder {
             pr2_errors: Vec::new(),
             pr2_following: Vec::new(),
             arm_active: false,
+            arm_engaged_from_ns: None,
+            recent_palms: std::collections::VecDeque::new(),
             pr2_delay: DelayFit::default(),
             camera_delay: DelayFit::default(),
             camera_pos: Vec::new(),
@@ -649,6 +663,10 @@ impl Recorder {
                 .end_pose(&state.position_rad)
                 .translation
                 .vector;
+            if self.recent_palms.len() >= RECENT_PALMS {
+                self.recent_palms.pop_front();
+            }
+            self.recent_palms.push_back((t, palm));
             let hand = self.truth_at(t);
             if let (Some(eng), Some(hand)) = (&mut self.engaged, hand) {
                 let robot_ref = *eng.robot_ref.get_or_insert(palm);
@@ -730,9 +748,42 @@ impl Recorder {
 
     /// A node's status as it arrives: the PR2 arm controller's lifecycle says whether
     /// the arm follows the operator (Active) or is stopped.
+    ///
+    /// Each engagement is measured against the references the controller took: a
+    /// clutch pressed while the hand moves engages from the newest wrist pose the
+    /// controller held at its step, some tens of ms after the press. When the
+    /// controller reports a new engagement (`arm.engaged_from_stamp_ns`), the operator's
+    /// reference becomes the true hand at that pose's capture stamp and the robot's the
+    /// palm at the status's stamp (the arm is still then). Until then (and from a
+    /// controller that does not report it) the press is the reference.
     pub fn on_status(&mut self, s: &NodeStatus) {
-        if s.node_name == "pr2_arm_controller" {
-            self.arm_active = s.lifecycle() == Some(Lifecycle::Active);
+        if s.node_name != "pr2_arm_controller" {
+            return;
+        }
+        self.arm_active = s.lifecycle() == Some(Lifecycle::Active);
+        let from_ns = s
+            .counter(teleop_interfaces::status::arm::ENGAGED_FROM_STAMP_NS)
+            .filter(|&ns| ns > 0);
+        let Some(from_ns) = from_ns else {
+            return;
+        };
+        if !self.arm_active || self.arm_engaged_from_ns == Some(from_ns) {
+            return;
+        }
+        self.arm_engaged_from_ns = Some(from_ns);
+        #[allow(clippy::cast_precision_loss)]
+        let human = self.truth_at(from_ns as f64 * 1e-9);
+        let engaged_s = secs(&s.header.stamp);
+        let palm = self
+            .recent_palms
+            .iter()
+            .rev()
+            .find(|(t, _)| *t <= engaged_s)
+            .map(|(_, p)| *p);
+        if let (Some(eng), Some(human)) = (&mut self.engaged, human) {
+            eng.human_ref = human.translation.vector;
+            eng.robot_ref = palm;
+            self.report.arm_reference_engagements += 1;
         }
     }
 
@@ -1078,8 +1129,9 @@ impl RunReport {
         let [x, y, z] = self.pr2_mean_abs_error_xyz_m;
         let _ = writeln!(
             s,
-            "PR2 end-effector error vs the scaled operator motion (clutched, {} engagements): mean {:.1} cm, p99 {:.1} cm; mean |error| x {:.1} / y {:.1} / z {:.1} cm ({} samples)",
+            "PR2 end-effector error vs the scaled operator motion (clutched, {} engagements, {} from the arm's own references): mean {:.1} cm, p99 {:.1} cm; mean |error| x {:.1} / y {:.1} / z {:.1} cm ({} samples)",
             self.clutch_engagements,
+            self.arm_reference_engagements,
             p.mean * 100.0,
             p.p99 * 100.0,
             x * 100.0,

@@ -642,6 +642,13 @@ fn task_meets_the_goals(
         1.0 + f("operator_reclutches"),
         "{task}: {json}"
     );
+    // Measured from the references the arm controller took: its status names the wrist
+    // pose each engagement started from.
+    assert!(
+        f("arm_reference_engagements") >= 1.0
+            && f("arm_reference_engagements") <= f("clutch_engagements"),
+        "{task}: {json}"
+    );
     assert!(
         nested("pr2_position_error_m", "samples") > 500.0,
         "{task}: {json}"

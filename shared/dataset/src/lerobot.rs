@@ -498,15 +498,16 @@ fn job_standing(s: &NodeStatus) -> Option<JobStanding> {
             .position(|n| n == name)
             .and_then(|i| s.counter_values.get(i).copied())
     };
-    counter("job.lifted")?;
-    let verdict = if counter("job.succeeded").unwrap_or(0) > 0 {
+    use teleop_interfaces::status::job;
+    counter(job::LIFTED)?;
+    let verdict = if counter(job::SUCCEEDED).unwrap_or(0) > 0 {
         Some("succeeded".to_owned())
     } else {
         s.counter_names
             .iter()
             .zip(&s.counter_values)
-            .find(|(n, v)| n.starts_with("job.failed.") && **v > 0)
-            .map(|(n, _)| format!("failed: {}", n.trim_start_matches("job.failed.")))
+            .find(|(n, v)| n.starts_with(job::FAILED_PREFIX) && **v > 0)
+            .map(|(n, _)| format!("failed: {}", n.trim_start_matches(job::FAILED_PREFIX)))
     };
     Some(JobStanding { verdict })
 }

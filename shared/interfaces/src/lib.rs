@@ -18,6 +18,7 @@ pub mod calibration;
 pub mod hardware;
 pub mod joints;
 pub mod nodes;
+pub mod status;
 pub mod timing;
 pub mod topics;
 

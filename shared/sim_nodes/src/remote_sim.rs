@@ -685,17 +685,20 @@ fn job_counters(judge: &teleop_physics::PickPlaceJudge, errors: u64) -> Vec<(Str
             Failure::TimedOut => (0, 0, 0, 1),
         },
     };
-    [
-        ("job.lifted", u64::from(judge.lifted())),
-        ("job.succeeded", succeeded),
-        ("job.completion_ms", completion_ms),
-        ("job.failed.fell_off_table", fell),
-        ("job.failed.timed_out", timed_out),
-        ("job.judge_errors", errors),
+    use teleop_interfaces::status::job;
+    let [fell_off_table, timed_out_name] = job::FAILURES;
+    let mut out: Vec<(String, u64)> = [
+        (job::LIFTED, u64::from(judge.lifted())),
+        (job::SUCCEEDED, succeeded),
+        (job::COMPLETION_MS, completion_ms),
+        (job::JUDGE_ERRORS, errors),
     ]
     .into_iter()
     .map(|(n, v)| (n.to_owned(), v))
-    .collect()
+    .collect();
+    out.push((format!("{}{fell_off_table}", job::FAILED_PREFIX), fell));
+    out.push((format!("{}{timed_out_name}", job::FAILED_PREFIX), timed_out));
+    out
 }
 
 /// Runs the simulator on the system clock until `duration` elapses (forever if `None`)
