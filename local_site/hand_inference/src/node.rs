@@ -34,14 +34,16 @@ use std::time::{Duration, Instant};
 
 use nalgebra::{Isometry3, Point3, Translation3};
 use serde::{Deserialize, Serialize};
-use teleop_bus::{Bus, BusConfig, BusError, Clock, Publisher, Subscriber};
+use teleop_bus::{Bus, BusConfig, BusError, Clock, Publisher};
 use teleop_hand_model::scene::HAND_CENTRE_IN_HAND_FRAME;
 use teleop_hardware::{Camera, CameraKind};
 use teleop_hardware_bus::BusCamera;
 use teleop_interfaces::joints::SHADOW_FINGER_JOINTS;
 use teleop_interfaces::{nodes, topics};
 use teleop_msgs::{Header, Image, JointState, Lifecycle, Pose, PoseStamped, encodings};
-use teleop_node::{FinalReport, LatencyHistogram, Node, NodeConfig, NodeErrors, SchedulingConfig};
+use teleop_node::{
+    FinalReport, LatencyHistogram, Node, NodeConfig, NodeErrors, SchedulingConfig, SourceLock,
+};
 use teleop_render::Intrinsics;
 
 use crate::{HandEstimate, HandEstimator, InferenceError, JointModel, OnnxModel, OnnxOptions};
@@ -170,6 +172,13 @@ pub struct HandInferenceConfig {
     pub max_pose_gap_s: f64,
     /// How much pose history is kept (s).
     pub pose_buffer_s: f64,
+    /// The camera and wrist poses are each taken from one publisher (the operator
+    /// site's camera arm and wrist tracker, as the robot site's controllers take
+    /// theirs): another publisher's poses are refused, counted
+    /// (`<topic>.rejected_foreign`) and reported as a conflict, never mixed into the
+    /// crop centre. A source silent this long may be replaced by the next one heard
+    /// (s).
+    pub pose_source_release_after_s: f64,
     /// The node turns inactive when no hand has been estimated for this long (s).
     pub no_hand_after_s: f64,
     /// When the poses stop for a moment (the motion capture loses the markers for a
@@ -200,6 +209,7 @@ impl Default for HandInferenceConfig {
             intrinsics: IntrinsicsChoice::Sr300,
             max_pose_extrapolation_s: 0.05,
             max_pose_gap_s: 0.2,
+            pose_source_release_after_s: 1.0,
             pose_buffer_s: 1.0,
             no_hand_after_s: 0.5,
             hold_tracked_centre_s: 0.5,
@@ -275,6 +285,15 @@ impl NodeConfig for HandInferenceConfig {
             return Err(format!(
                 "pose_buffer_s must be in [max_pose_gap_s, 10], got {}",
                 self.pose_buffer_s
+            ));
+        }
+        if !(self.pose_source_release_after_s.is_finite()
+            && self.pose_source_release_after_s >= 0.05
+            && self.pose_source_release_after_s <= 60.0)
+        {
+            return Err(format!(
+                "pose_source_release_after_s must be in [0.05, 60], got {}",
+                self.pose_source_release_after_s
             ));
         }
         if !(self.no_hand_after_s.is_finite()
@@ -840,8 +859,8 @@ pub struct HandInferenceNode<M: JointModel> {
     image_centre: ImageCentreConfig,
     estimator: HandEstimator<M>,
     camera: BusCamera,
-    camera_pose_sub: Subscriber<PoseStamped>,
-    wrist_pose_sub: Subscriber<PoseStamped>,
+    camera_pose_sub: SourceLock<PoseStamped>,
+    wrist_pose_sub: SourceLock<PoseStamped>,
     targets: Publisher<JointState>,
     clock: Arc<dyn Clock>,
     camera_poses: PoseBuffer,
@@ -899,8 +918,14 @@ impl<M: JointModel> HandInferenceNode<M> {
             image_centre: cfg.image_centre,
             estimator,
             camera,
-            camera_pose_sub: bus.subscriber(&topics::CAMERA_POSE).await?,
-            wrist_pose_sub: bus.subscriber(&topics::WRIST_POSE).await?,
+            camera_pose_sub: SourceLock::new(
+                bus.subscriber(&topics::CAMERA_POSE).await?,
+                cfg.pose_source_release_after_s,
+            ),
+            wrist_pose_sub: SourceLock::new(
+                bus.subscriber(&topics::WRIST_POSE).await?,
+                cfg.pose_source_release_after_s,
+            ),
             targets: bus.publisher(&topics::HAND_JOINT_TARGETS).await?,
             clock: Arc::clone(bus.clock()),
             camera_poses: PoseBuffer::new(cfg.pose_buffer_s),
@@ -949,12 +974,13 @@ impl<M: JointModel> HandInferenceNode<M> {
         &self.wrist_poses
     }
 
-    fn take_poses(&mut self) {
-        for (sub, buffer) in [
-            (&self.camera_pose_sub, &mut self.camera_poses),
-            (&self.wrist_pose_sub, &mut self.wrist_poses),
+    fn take_poses(&mut self, now_s: f64) {
+        for (lock, buffer) in [
+            (&mut self.camera_pose_sub, &mut self.camera_poses),
+            (&mut self.wrist_pose_sub, &mut self.wrist_poses),
         ] {
-            while let Some(r) = sub.try_recv() {
+            lock.release_if_silent(now_s);
+            for r in lock.drain() {
                 match pose_from_msg(&r.msg.pose) {
                     Some(pose) => {
                         buffer.push(StampedPose {
@@ -1074,7 +1100,13 @@ impl<M: JointModel> Node for HandInferenceNode<M> {
         self.last_tick_s = Some(now_s);
         self.errors.step(now_s);
         let started = *self.started_s.get_or_insert(now_s);
-        self.take_poses();
+        self.take_poses(now_s);
+        if let Some(conflict) = teleop_node::source::conflict(
+            now_s,
+            &mut [&mut self.camera_pose_sub, &mut self.wrist_pose_sub],
+        ) {
+            self.errors.event("pose source", conflict, now_s);
+        }
         let outcome = match self.camera.read(now_s) {
             Ok(Some(image)) => Some(self.process(&image, now_s)),
             Ok(None) => None,

@@ -534,3 +534,76 @@ fn the_shipped_configs_parse_validate_and_the_defaults_file_is_the_defaults() {
             .expect("defaults file");
     assert_eq!(defaults, HandInferenceConfig::default());
 }
+
+/// A second publisher of wrist poses (another operator station, a stray tool) is
+/// refused as the robot site's controllers refuse it: the crop centre keeps coming from
+/// the poses the node locked onto, the foreign ones are counted and the conflict is
+/// reported. Its poses are stamped at the frames' capture times, 0.3 m away, so a
+/// single one taken in would move the centre.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_second_wrist_pose_publisher_is_refused_and_never_moves_the_crop() {
+    let mut rig = Rig::new(
+        79,
+        HandInferenceConfig::default(),
+        DeterministicTestModel::new(96),
+    )
+    .await;
+    let frame = blob_frame(&rig.scene.centre_in_camera);
+    // The node locks onto the rig's publishers.
+    let (stamps, got) = rig.run_frames(&frame, 2, true).await;
+    check_targets(&got, &stamps);
+    let intruder = rig
+        .rig_bus
+        .publisher(&topics::WRIST_POSE)
+        .await
+        .expect("second wrist pose publisher");
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let elsewhere = Isometry3::translation(0.0, 0.3, 0.0) * rig.scene.wrist;
+    let mut got = Vec::new();
+    let mut published = 0;
+    for _ in 0..5 {
+        let before = rig.now();
+        rig.publish_poses(before);
+        rig.step(&mut got).await;
+        let capture = Time::from_nanos(before.as_nanos() + 20_000_000);
+        rig.publish_poses(Time::from_nanos(before.as_nanos() + 40_000_000));
+        // Last before the tick: the newest sample in the queue.
+        tokio::time::sleep(Duration::from_millis(5)).await;
+        intruder
+            .put(&pose_msg(&elsewhere, capture))
+            .expect("intruder pose");
+        rig.step(&mut got).await;
+        rig.publish_depth(capture, &frame);
+        rig.step(&mut got).await;
+        match rig.node.last_outcome() {
+            Some(FrameOutcome::Published { centre_m, .. }) => {
+                assert!(
+                    (centre_m - rig.scene.centre_in_camera).norm() < 1e-6,
+                    "the crop moved to {centre_m:?}"
+                );
+                published += 1;
+            }
+            other => panic!("expected a published frame, got {other:?}"),
+        }
+    }
+    assert_eq!(published, 5);
+    for s in rig.node.wrist_poses().samples() {
+        assert!(
+            (s.pose.translation.vector - rig.scene.wrist.translation.vector).norm() < 1e-9,
+            "a foreign pose in the history: {:?}",
+            s.pose.translation
+        );
+    }
+    assert!(rig.counter("wrist_pose.rejected_foreign") >= 1);
+    assert_eq!(rig.counter("wrist_pose.source_locks"), 1);
+    // The camera pose's counters take its topic's last name, `teleop/local_camera/pose`.
+    assert_eq!(rig.counter("pose.source_locks"), 1);
+    assert!(rig.counter("wrist_pose.conflicts") >= 1);
+    assert!(
+        rig.node
+            .last_error()
+            .contains("conflicting commander on /teleop/wrist_pose"),
+        "{}",
+        rig.node.last_error()
+    );
+}

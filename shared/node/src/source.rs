@@ -152,6 +152,21 @@ impl<T: Message> SourceLock<T> {
     /// first publisher in the queue becomes the source.
     pub fn poll(&mut self) -> Option<Received<T>> {
         let mut newest = None;
+        self.take_each(|r| newest = Some(r));
+        newest
+    }
+
+    /// Every sample of the locked publisher since the last call, oldest first, for a
+    /// node that keeps a history (a pose buffer) rather than the newest command.
+    /// Unlocked, the first publisher in the queue becomes the source.
+    pub fn drain(&mut self) -> Vec<Received<T>> {
+        let mut all = Vec::new();
+        self.take_each(|r| all.push(r));
+        all
+    }
+
+    fn take_each(&mut self, mut take: impl FnMut(Received<T>)) {
+        let mut heard = None;
         while let Some(r) = self.sub.try_recv() {
             match self.locked {
                 None => {
@@ -164,17 +179,20 @@ impl<T: Message> SourceLock<T> {
                         %source,
                         "commands locked onto one publisher"
                     );
-                    newest = Some(r);
+                    heard = Some(r.receive_time_s());
+                    take(r);
                 }
                 // Queued just before the lock took effect.
                 Some(g) if g != r.publisher_gid => {}
-                Some(_) => newest = Some(r),
+                Some(_) => {
+                    heard = Some(r.receive_time_s());
+                    take(r);
+                }
             }
         }
-        if let Some(r) = &newest {
-            self.last_heard_s = r.receive_time_s();
+        if let Some(t) = heard {
+            self.last_heard_s = t;
         }
-        newest
     }
 
     /// Drops the lock: the next publisher heard becomes the source.
