@@ -6,6 +6,7 @@
 //! cap, nothing through a partition).
 
 use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
@@ -51,7 +52,7 @@ impl Rig {
             front,
             sink_addr.to_string(),
         ));
-        let (sender, receiver) = connect(&sink, front_addr).await?;
+        let (sender, receiver) = connect(&emulator, &sink, front_addr).await?;
         Ok(Self {
             emulator,
             sender,
@@ -67,15 +68,20 @@ impl Rig {
     /// # Errors
     /// Connecting on loopback.
     pub async fn connection(&self) -> std::io::Result<(TcpStream, TcpStream)> {
-        connect(&self.sink, self.front).await
+        connect(&self.emulator, &self.sink, self.front).await
     }
 }
 
 /// A connection through the emulator listening at `front` to `sink`.
+/// Returns once the emulator has counted the connection too: the sink's accept can
+/// complete before the emulator's task resumes after its upstream connect (a CI run
+/// read `connections=0` just after it).
 async fn connect(
+    emulator: &Emulator,
     sink: &TcpListener,
     front: std::net::SocketAddr,
 ) -> std::io::Result<(TcpStream, TcpStream)> {
+    let before = emulator.stats.connections.load(Ordering::Relaxed);
     // The sender's send buffer as small as the compose system's routers ask for on
     // their WAN links, so what the sender has written and the receiver not yet read is
     // what the emulator holds (and those small buffers).
@@ -84,6 +90,19 @@ async fn connect(
     let sender = socket.connect(front).await?;
     sender.set_nodelay(true)?;
     let (receiver, _) = sink.accept().await?;
+    let counted = async {
+        while emulator.stats.connections.load(Ordering::Relaxed) <= before {
+            tokio::time::sleep(Duration::from_millis(1)).await;
+        }
+    };
+    tokio::time::timeout(Duration::from_secs(5), counted)
+        .await
+        .map_err(|_| {
+            std::io::Error::new(
+                std::io::ErrorKind::TimedOut,
+                "the emulator did not count the connection within 5 s",
+            )
+        })?;
     Ok((sender, receiver))
 }
 
