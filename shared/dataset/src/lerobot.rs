@@ -492,15 +492,9 @@ fn read_recording(
 
 /// The job's standing in a status of the simulator, if it has a job.
 fn job_standing(s: &NodeStatus) -> Option<JobStanding> {
-    let counter = |name: &str| {
-        s.counter_names
-            .iter()
-            .position(|n| n == name)
-            .and_then(|i| s.counter_values.get(i).copied())
-    };
     use teleop_interfaces::status::job;
-    counter(job::LIFTED)?;
-    let verdict = if counter(job::SUCCEEDED).unwrap_or(0) > 0 {
+    s.counter(job::LIFTED)?;
+    let verdict = if s.counter(job::SUCCEEDED).unwrap_or(0) > 0 {
         Some("succeeded".to_owned())
     } else {
         s.counter_names

@@ -168,7 +168,7 @@ impl<T: Message> SourceLock<T> {
     fn take_each(&mut self, mut take: impl FnMut(Received<T>)) {
         let mut heard = None;
         while let Some(r) = self.sub.try_recv() {
-            match self.locked {
+            let from_source = match self.locked {
                 None => {
                     self.locked = Some(r.publisher_gid);
                     self.sub.lock_source(Some(r.publisher_gid));
@@ -179,15 +179,14 @@ impl<T: Message> SourceLock<T> {
                         %source,
                         "commands locked onto one publisher"
                     );
-                    heard = Some(r.receive_time_s());
-                    take(r);
+                    true
                 }
-                // Queued just before the lock took effect.
-                Some(g) if g != r.publisher_gid => {}
-                Some(_) => {
-                    heard = Some(r.receive_time_s());
-                    take(r);
-                }
+                // Another's, queued just before the lock took effect: dropped.
+                Some(g) => g == r.publisher_gid,
+            };
+            if from_source {
+                heard = Some(r.receive_time_s());
+                take(r);
             }
         }
         if let Some(t) = heard {
