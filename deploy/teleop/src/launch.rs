@@ -29,7 +29,7 @@ use teleop_sim_nodes::local_sim::LocalSimConfig;
 use tokio::process::{Child, Command};
 
 use crate::report::Recorder;
-use crate::tasks::PICK_JOB;
+use crate::tasks::{PICK_JOB, TOWER_JOB, WATCHED_JOBS};
 
 use crate::record::{reports_job_failed, reports_task_done};
 
@@ -50,7 +50,8 @@ pub struct LaunchArgs {
     pub grace_s: f64,
     /// Run this operator task once and stop when it is done: `pick` (the operator who
     /// watches the display moves the robot world's can onto its target, judged by the
-    /// robot-site simulator) or a scripted motion (pick_and_place, pouring, sweeping,
+    /// robot-site simulator), `tower` (the same operator stacks two blocks on a third)
+    /// or a scripted motion (pick_and_place, pouring, sweeping,
     /// fader, precision). Default: the simulator's configured task, repeated
     /// until Ctrl-C or `--duration-s`.
     #[arg(long)]
@@ -242,22 +243,26 @@ fn forward_keys(
 }
 
 /// Settings a task needs on other nodes, before the command line's own `--set` (which
-/// win): the pick job starts the PR2 at the top grasp's posture with the table under
-/// it (`teleop_sim::PICK_TOP_GRASP_POSTURE_RAD`).
+/// win): the pick and tower jobs start the PR2 at the top grasp's posture with the
+/// table under it (`teleop_sim::PICK_TOP_GRASP_POSTURE_RAD`); the tower job's scene.
 fn task_sets(task: Option<&str>) -> Vec<String> {
-    if task != Some(PICK_JOB) {
+    let Some(task) = task.filter(|t| WATCHED_JOBS.contains(t)) else {
         return Vec::new();
-    }
+    };
     let posture = teleop_sim::PICK_TOP_GRASP_POSTURE_RAD
         .map(|v| v.to_string())
         .join(", ");
-    vec![
+    let mut sets = vec![
         format!("remote_sim.pick.arm_posture_rad=[{posture}]"),
         format!(
             "remote_sim.pick.table_below_palm_m={}",
             teleop_sim::PICK_TOP_GRASP_TABLE_BELOW_PALM_M
         ),
-    ]
+    ];
+    if task == TOWER_JOB {
+        sets.push("remote_sim.scene=\"tower\"".to_owned());
+    }
+    sets
 }
 
 /// The simulator's config for this run: the shipped file or the defaults, with the
@@ -269,6 +274,14 @@ fn local_sim_config(args: &LaunchArgs) -> anyhow::Result<Option<(PathBuf, String
     };
     if task == PICK_JOB {
         cfg.operator_site.operator = OperatorModel::Watching;
+    } else if task == TOWER_JOB {
+        // The operator is told the tower's blocks (the robot world's default ones).
+        cfg.operator_site.operator = OperatorModel::Watching;
+        cfg.operator_site.watching.placements = teleop_sim::TowerJobConfig::default().placements();
+        cfg.operator_site.watching.clear_tall_objects = true;
+        // Pressed 1 cm onto the block below: a block carried tilted stands flat before
+        // it is let go (5 mm above, as the can is, it was let go on an edge and fell).
+        cfg.operator_site.watching.release_above_m = -0.01;
     } else {
         cfg.operator_site.operator = OperatorModel::Scripted;
         cfg.operator_site.task = TaskKind::ALL
@@ -276,7 +289,7 @@ fn local_sim_config(args: &LaunchArgs) -> anyhow::Result<Option<(PathBuf, String
             .find(|k| k.name() == task)
             .with_context(|| {
                 format!(
-                    "unknown task {task:?}; the tasks are: {PICK_JOB}, {}",
+                    "unknown task {task:?}; the tasks are: {PICK_JOB}, {TOWER_JOB}, {}",
                     TaskKind::ALL.map(TaskKind::name).join(", ")
                 )
             })?;
@@ -960,5 +973,35 @@ mod tests {
             teleop_sim::PICK_TOP_GRASP_TABLE_BELOW_PALM_M
         );
         assert_eq!(sets.len(), 2, "{sets:?}");
+    }
+
+    #[test]
+    fn the_tower_job_gets_its_scene_the_top_grasp_posture_and_the_operator_its_blocks() {
+        use teleop_node::NodeConfig as _;
+        use teleop_sim_nodes::remote_sim::{SceneKind, SimNodeConfig};
+        let sets = node_overrides(&task_sets(Some(TOWER_JOB))).expect("valid");
+        let sim = teleop_node::config::apply_overrides(
+            &SimNodeConfig::default(),
+            &sets_for(&sets, "remote_sim"),
+        )
+        .expect("the simulator's own fields");
+        assert_eq!(sim.scene, SceneKind::Tower);
+        assert_eq!(
+            sim.pick.arm_posture_rad,
+            teleop_sim::PICK_TOP_GRASP_POSTURE_RAD
+        );
+        sim.validate().expect("a valid tower scene");
+        // The operator stacks each block on the one below, bottom up.
+        let placements = teleop_sim::TowerJobConfig::default().placements();
+        let names: Vec<(&str, &str)> = placements
+            .iter()
+            .map(|p| match &p.onto {
+                teleop_sim::operator_site::Onto::Object { name, .. } => {
+                    (p.object.as_str(), name.as_str())
+                }
+                teleop_sim::operator_site::Onto::Table { .. } => (p.object.as_str(), "table"),
+            })
+            .collect();
+        assert_eq!(names, [("middle", "base"), ("top", "middle")]);
     }
 }

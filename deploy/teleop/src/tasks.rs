@@ -7,6 +7,13 @@ use serde::Serialize;
 /// job (`[pick.job]` of `remote_sim`), judged by the robot-site simulator.
 pub const PICK_JOB: &str = "pick";
 
+/// The task of the operator who watches the display and builds the robot world's tower
+/// (`scene = "tower"`, `[tower]` of `remote_sim`): two blocks stacked on a third.
+pub const TOWER_JOB: &str = "tower";
+
+/// The judged jobs of the operator who watches the display.
+pub const WATCHED_JOBS: [&str; 2] = [PICK_JOB, TOWER_JOB];
+
 /// A task's figures in the thesis: its tables' success rate and average completion
 /// time ("calculated when the robot started to move until it went back to the
 /// starting pose", ch. 6.4, Table 6.1).
@@ -34,6 +41,11 @@ pub fn thesis_figures(task: &str) -> &'static [ThesisFigure] {
                 time_s: 52.5,
             },
         ],
+        TOWER_JOB => &[ThesisFigure {
+            source: "Table 7.1, tower (three different objects stacked)",
+            success_pct: 60.0,
+            time_s: 102.8,
+        }],
         _ => &[],
     }
 }

@@ -15,7 +15,10 @@ pub mod scripted;
 pub mod world;
 
 pub use error::PhysicsError;
-pub use judge::{Failure, PickPlaceConfig, PickPlaceJudge, TargetRegion, Verdict};
+pub use judge::{
+    Failure, JobJudge, JudgeError, PickPlaceConfig, PickPlaceJudge, TargetRegion, TowerConfig,
+    TowerJudge, Verdict,
+};
 pub use scene::{ObjectShape, ObjectSpec, ObjectVariation, SceneSpec, TableSpec};
 pub use world::{ARM_DOF, HAND_DOF, PhysicsConfig, PhysicsWorld, RobotParams, world_mjcf};
 

@@ -21,7 +21,9 @@
 //! `GRASP_TARGETS` (17 angles, rad: one more posture, e.g. what the hand network sent
 //! in a run), `GRASP_IMPRATIO` (MuJoCo's `impratio` instead of the default),
 //! `GRASP_FK=FILE` (instead: the palm's turn over a recorded run's arm joint states,
-//! lines of a time and 7 angles).
+//! lines of a time and 7 angles), `GRASP_OBJECT` (another object than the can, its top
+//! where the can's would be: `box:HX,HY,HZ` half extents or `cylinder:R,HH`, m; its
+//! mass that of wood, 600 kg/m^3).
 
 use nalgebra::{Isometry3, Point3, Vector3};
 use rand::{Rng, SeedableRng};
@@ -30,7 +32,7 @@ use teleop_hand_model::human::HumanHand;
 use teleop_hand_model::retarget::{RetargetSettings, Retargeter};
 use teleop_hand_model::sampling::Synergy;
 use teleop_kinematics::robots;
-use teleop_physics::scene::{SceneSpec, TableSpec, can};
+use teleop_physics::scene::{ObjectShape, ObjectSpec, SceneSpec, TableSpec, can};
 use teleop_physics::world::{ARM_DOF, HAND_DOF, PhysicsConfig, PhysicsWorld, RobotParams};
 
 const KD: f64 = 0.1;
@@ -53,19 +55,62 @@ struct Settings {
     jitter: f64,
     hold_s: f64,
     robot: RobotParams,
+    /// The object grasped, placed with its centre at the origin on a table at z = 0.
+    object: ObjectSpec,
+}
+
+/// `GRASP_OBJECT`: `box:HX,HY,HZ` or `cylinder:R,HH` (m), wood; the can without it.
+fn object_from_env() -> anyhow::Result<ObjectSpec> {
+    let Ok(spec) = std::env::var("GRASP_OBJECT") else {
+        return Ok(can("can", [0.0; 2], 0.0));
+    };
+    let (kind, sizes) = spec
+        .split_once(':')
+        .ok_or_else(|| anyhow::anyhow!("GRASP_OBJECT {spec:?}: expected KIND:SIZES"))?;
+    let v: Vec<f64> = sizes
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()?;
+    let (shape, volume) = match (kind, v.as_slice()) {
+        ("box", [x, y, z]) => (
+            ObjectShape::Box {
+                half_m: [*x, *y, *z],
+            },
+            8.0 * x * y * z,
+        ),
+        ("cylinder", [r, h]) => (
+            ObjectShape::Cylinder {
+                radius_m: *r,
+                half_height_m: *h,
+            },
+            std::f64::consts::PI * r * r * 2.0 * h,
+        ),
+        _ => anyhow::bail!("GRASP_OBJECT {spec:?}: box:HX,HY,HZ or cylinder:R,HH"),
+    };
+    Ok(ObjectSpec {
+        name: "object".to_owned(),
+        shape,
+        mass_kg: 600.0 * volume,
+        friction: 0.8,
+        position_m: [0.0, 0.0, shape.half_height_m()],
+        yaw_rad: 0.0,
+        free: true,
+        rgba: [0.2, 0.6, 0.2, 1.0],
+    })
 }
 
 impl Settings {
-    fn from_env() -> Self {
+    fn from_env() -> anyhow::Result<Self> {
         let mut robot = RobotParams::default();
         robot.impratio = env_f64("GRASP_IMPRATIO", robot.impratio);
-        Self {
+        Ok(Self {
             kp: env_f64("GRASP_KP", 10.0),
             max_effort: env_f64("GRASP_MAX_EFFORT", 1.0),
             jitter: env_f64("GRASP_JITTER", 0.0),
             hold_s: env_f64("GRASP_HOLD_S", 10.0),
             robot,
-        }
+            object: object_from_env()?,
+        })
     }
 }
 
@@ -122,7 +167,10 @@ fn run(
 ) -> anyhow::Result<(String, f64)> {
     let palm = palm_pose(robot, &c.arm)?;
     let centre = palm * Point3::from(Vector3::from(c.can_in_palm)) - Vector3::z() * c.below_m;
-    let top = centre.z - can("can", [0.0; 2], 0.0).shape.half_height_m();
+    // The object's top where the can's would be.
+    let half = settings.object.shape.half_height_m();
+    let centre = centre + Vector3::z() * (can("can", [0.0; 2], 0.0).shape.half_height_m() - half);
+    let top = centre.z - half;
     let config = PhysicsConfig {
         robot: settings.robot.clone(),
         scene: SceneSpec {
@@ -131,7 +179,10 @@ fn run(
                 centre_xy_m: [centre.x, centre.y],
                 ..TableSpec::default()
             }),
-            objects: vec![can("can", [centre.x, centre.y], top)],
+            objects: vec![ObjectSpec {
+                position_m: [centre.x, centre.y, centre.z],
+                ..settings.object.clone()
+            }],
         },
         timestep_s: 0.001,
         arm_initial_rad: c.arm,
@@ -266,7 +317,7 @@ fn main() -> anyhow::Result<()> {
     if let Ok(path) = std::env::var("GRASP_FK") {
         return palm_turns(&robot, &path);
     }
-    let settings = Settings::from_env();
+    let settings = Settings::from_env()?;
     let hand = HumanHand::average();
     let retargeter = Retargeter::new(RetargetSettings::default())?;
     let open = shadow_targets(&hand, &retargeter, Synergy::Open, Synergy::Open, 0.0, 1.0)?;

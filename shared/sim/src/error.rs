@@ -33,6 +33,9 @@ pub enum SimError {
     /// Something the joint-space world has that the MuJoCo world does not yet.
     #[error("not supported by the MuJoCo world yet: {0}")]
     Unsupported(&'static str),
+    /// A job's judge refused its settings.
+    #[error("job judge: {0}")]
+    Job(#[from] teleop_physics::JudgeError),
     /// The physical world (MuJoCo) refused a model or a command, or became unstable.
     #[error("physics: {0}")]
     Physics(#[from] teleop_physics::PhysicsError),

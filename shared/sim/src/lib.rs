@@ -120,7 +120,7 @@ pub use hardware::{RobotWorld, SharedWorld, SimArm, SimHand, share};
 pub use objects::{ExternalLoad, LoadTarget, Object, ObjectShape};
 pub use physical::{
     MujocoWorld, MujocoWorldConfig, PICK_TOP_GRASP_POSTURE_RAD, PICK_TOP_GRASP_TABLE_BELOW_PALM_M,
-    PickJobConfig, PickSceneConfig,
+    PickJobConfig, PickSceneConfig, TowerBlock, TowerJobConfig,
 };
 pub use scenarios::{CupGraspConfig, TouchingTaskConfig, WORKING_POSTURE_RAD};
 pub use teleop_hardware::velocity_driver::{ArmJointLimits, ArmSim};

@@ -291,7 +291,7 @@ impl Watcher {
         }
         let sample = self.operator.step(now_s);
         // The object as perceived against the newest ground truth received.
-        let object = &self.operator.config().object;
+        let object = self.operator.object_name();
         let off_mm = match (self.operator.perceived_scene(), &self.newest_truth) {
             (Some(seen), Some(truth)) => match (seen.object(object), truth.object(object)) {
                 (Some(a), Some(b)) => (a.translation.vector - b.translation.vector).norm() * 1e3,
@@ -335,6 +335,10 @@ impl Watcher {
             ("operator.views_received".to_owned(), self.views_received),
             ("operator.submovements".to_owned(), submovements),
             ("operator.grasp_attempts".to_owned(), grasp_attempts),
+            (
+                "operator.placement".to_owned(),
+                self.operator.placement() as u64,
+            ),
             ("operator.goals_not_reached".to_owned(), goals_not_reached),
             ("operator.bad_input".to_owned(), self.bad_input),
             (

@@ -31,8 +31,8 @@ use teleop_msgs::{Header, Image, Lifecycle, TFMessage, Transform, TransformStamp
 use teleop_node::{FinalReport, Node, NodeConfig, NodeErrors, Periodic, SchedulingConfig};
 use teleop_sim::{
     CameraViewsConfig, CupGraspConfig, MujocoWorld, MujocoWorldConfig, PickSceneConfig, RobotWorld,
-    SceneCameras, SimArm, SimHand, TouchingTaskConfig, View, WORKING_POSTURE_RAD, World,
-    WorldConfig,
+    SceneCameras, SimArm, SimHand, TouchingTaskConfig, TowerJobConfig, View, WORKING_POSTURE_RAD,
+    World, WorldConfig,
 };
 
 /// Which world to build.
@@ -48,6 +48,9 @@ pub enum SceneKind {
     /// A table with a can and a cube free on it (thesis ch. 6.4's pick tasks); the
     /// physical engine only.
     Pick,
+    /// The pick scene's table with the tower job's blocks on it (thesis ch. 7.6.2's
+    /// tower building); the physical engine only.
+    Tower,
 }
 
 /// Which simulator moves the robots.
@@ -202,8 +205,10 @@ pub struct SimNodeConfig {
     pub world: WorldConfig,
     pub touching: TouchingTaskConfig,
     pub cup_grasp: CupGraspConfig,
-    /// The scene of `scene = "pick"`.
+    /// The scene of `scene = "pick"` (and the table and postures of `scene = "tower"`).
     pub pick: PickSceneConfig,
+    /// The blocks and the job of `scene = "tower"`.
+    pub tower: TowerJobConfig,
     /// The physical world's settings (`engine = "mujoco"`): robot parameters, model
     /// mismatch, object variation, noise. The scene's objects and postures come from
     /// the scene's own section.
@@ -237,6 +242,7 @@ impl Default for SimNodeConfig {
             },
             cup_grasp: CupGraspConfig::default(),
             pick: PickSceneConfig::default(),
+            tower: TowerJobConfig::default(),
             mujoco: MujocoWorldConfig::default(),
             cameras: CameraViewsConfig::default(),
             safety: SimSafetyConfig::default(),
@@ -284,8 +290,16 @@ impl NodeConfig for SimNodeConfig {
                 return Err(format!("safety.{field} must name a node"));
             }
         }
-        if self.scene == SceneKind::Pick {
-            self.pick.job_config().map_err(|e| e.to_string())?;
+        match self.scene {
+            SceneKind::Pick => {
+                self.pick.job_config().map_err(|e| e.to_string())?;
+            }
+            SceneKind::Tower => {
+                self.pick
+                    .tower_job_config(&self.tower)
+                    .map_err(|e| format!("tower: {e}"))?;
+            }
+            _ => {}
         }
         if self.pr2_arm.backend == BackendKind::Ros2Control {
             self.pr2_arm
@@ -340,7 +354,7 @@ pub fn build_world(cfg: &SimNodeConfig) -> anyhow::Result<SimWorld> {
             SceneKind::Free => Some(World::new(cfg.world.clone())?),
             SceneKind::Touching => Some(World::touching_task(&cfg.touching)?),
             SceneKind::CupGrasp => Some(World::cup_grasp(&cfg.cup_grasp)?),
-            SceneKind::Pick => None,
+            SceneKind::Pick | SceneKind::Tower => None,
         })
     };
     Ok(match cfg.engine {
@@ -356,7 +370,14 @@ pub fn build_world(cfg: &SimNodeConfig) -> anyhow::Result<SimWorld> {
         Engine::Mujoco => {
             let world = match joint_world()? {
                 Some(world) => MujocoWorld::from_joint_world(&world, cfg.mujoco.clone())?,
-                None => MujocoWorld::new(&cfg.pick.scene()?, cfg.pick.world_config(&cfg.mujoco))?,
+                None => {
+                    let scene = if cfg.scene == SceneKind::Tower {
+                        cfg.pick.tower_scene(&cfg.tower)?
+                    } else {
+                        cfg.pick.scene()?
+                    };
+                    MujocoWorld::new(&scene, cfg.pick.world_config(&cfg.mujoco))?
+                }
             };
             Arc::new(Mutex::new(world))
         }
@@ -385,9 +406,9 @@ pub struct SimNode {
     errors: NodeErrors,
     /// The last tick stepped the world and published both robots' states.
     serving: bool,
-    /// The scene's job judged from ground truth (the pick scene), and the observations
+    /// The scene's job judged from ground truth (the pick and tower scenes), and the observations
     /// it refused.
-    job: Option<teleop_physics::PickPlaceJudge>,
+    job: Option<teleop_physics::JobJudge>,
     job_errors: u64,
 }
 
@@ -428,7 +449,12 @@ impl SimNode {
         )?;
         let hand_safety = HandSafety::new(HandLimits::shadow()?, cfg.safety.hand)?;
         let job = match cfg.scene {
-            SceneKind::Pick => Some(teleop_physics::PickPlaceJudge::new(cfg.pick.job_config()?)?),
+            SceneKind::Pick => Some(teleop_physics::JobJudge::PickPlace(
+                teleop_physics::PickPlaceJudge::new(cfg.pick.job_config()?)?,
+            )),
+            SceneKind::Tower => Some(teleop_physics::JobJudge::Tower(
+                teleop_physics::TowerJudge::new(cfg.pick.tower_job_config(&cfg.tower)?)?,
+            )),
             _ => None,
         };
         tracing::info!(scene = ?cfg.scene, engine = ?cfg.engine, arm_from = %cfg.safety.arm_controller_node,
@@ -670,7 +696,7 @@ impl Node for SimNode {
 /// The job's standing as status counters: `job.lifted` (0/1), `job.succeeded` (0/1),
 /// `job.completion_ms`, `job.failed.fell_off_table` / `job.failed.timed_out` (0/1),
 /// `job.judge_errors` (observations it refused).
-fn job_counters(judge: &teleop_physics::PickPlaceJudge, errors: u64) -> Vec<(String, u64)> {
+fn job_counters(judge: &teleop_physics::JobJudge, errors: u64) -> Vec<(String, u64)> {
     use teleop_physics::{Failure, Verdict};
     let (succeeded, completion_ms, fell, timed_out) = match judge.verdict() {
         Verdict::Running => (0, 0, 0, 0),

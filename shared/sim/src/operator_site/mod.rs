@@ -56,7 +56,7 @@ pub use mocap::{Mocap, MocapConfig, MocapCounts, MocapReading};
 pub use reclutch::{Reclutch, ReclutchConfig, ReclutchCounts};
 pub use tasks::{TaskKind, TaskSample, TaskScript};
 use teleop_hardware::velocity_driver::{ArmJointLimits, ArmSim};
-pub use watching::{OperatorModel, WatchingConfig, WatchingOperator};
+pub use watching::{Onto, OperatorModel, Placement, WatchingConfig, WatchingOperator};
 
 /// UR5 joint count.
 pub const UR5_DOF: usize = 6;

@@ -50,19 +50,58 @@ pub enum OperatorModel {
     Watching,
 }
 
-/// Settings of the watching operator. The job (which object, where to) must match the
-/// robot world's `[pick.job]`: the operator is told the task as a person would be.
+/// Where a placement puts its object.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum Onto {
+    /// On the table, this far from the palm's starting position (world x-y, m).
+    Table { from_start_palm_xy_m: [f64; 2] },
+    /// On top of another object, centred on it as seen; `half_height_m` is that
+    /// object's half height as the operator sees it.
+    Object { name: String, half_height_m: f64 },
+}
+
+/// One object to move, and where to.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Placement {
+    /// The object, by its name in the robot world.
+    pub object: String,
+    /// Its half height (upright) as the operator sees it, m: the grasp goes
+    /// `grasp_above_top_m` above its top, and on another object it rests this much
+    /// above that object's top. The per-seed variation of sizes is not seen.
+    pub half_height_m: f64,
+    pub onto: Onto,
+}
+
+impl Placement {
+    /// The pick job's: the can (23 cm tall) onto the table 10 cm beyond the palm's start
+    /// (the robot world's default target, `[pick.job]`).
+    #[must_use]
+    pub fn pick_can() -> Self {
+        Self {
+            object: "can".to_owned(),
+            half_height_m: 0.115,
+            onto: Onto::Table {
+                from_start_palm_xy_m: [0.1, 0.0],
+            },
+        }
+    }
+}
+
+/// Settings of the watching operator. The job (which objects, where to) must match the
+/// robot world's (`[pick.job]`, `[tower]`): the operator is told the task as a person
+/// would be.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct WatchingConfig {
     /// Time from a percept's arrival until the operator acts on it, s. Default 0.2 (a
     /// visual reaction time).
     pub reaction_delay_s: f64,
-    /// The object to move, by its name in the robot world. Default `can`.
-    pub object: String,
-    /// Where to put it: from the palm's starting position, world x-y, m. Default
-    /// [0.1, 0] (the robot world's default target).
-    pub target_from_start_palm_xy_m: [f64; 2],
+    /// The objects to move, in order. Default: the pick job's can onto the table
+    /// ([`Placement::pick_can`]); the tower job puts one block on another, then a third
+    /// on those.
+    pub placements: Vec<Placement>,
     /// The rotation the operator has learned between its hand's motion and the robot's
     /// (roll, pitch, yaw, deg). Default identity: the arm controller's default
     /// `operator_to_robot_rpy_deg`.
@@ -78,7 +117,7 @@ pub struct WatchingConfig {
     /// the camera arm can follow).
     pub turn_speed_deg_s: f64,
     /// A point in the palm's frame (-y out of the palm, z along the fingers) that goes
-    /// `grasp_above_centre_m` above the object's centre at the grasp, m. Default [0,
+    /// `grasp_above_top_m` above the object's top at the grasp, m. Default [0,
     /// -0.017, 0.075]: 5 mm out of the palm's 12 mm half thickness, 7.5 cm along the
     /// fingers, where the closing fingers wrap the can's rim from the far side and the
     /// thumb from the near side. Measured with `cargo run --release -p teleop-sim
@@ -88,14 +127,19 @@ pub struct WatchingConfig {
     /// either side, its top from 0 to 1.5 cm below that point; 2 cm below, it tipped or
     /// stayed behind.
     pub object_in_palm_m: [f64; 3],
-    /// The grasp puts that point this far above the object's centre, m. Default 0.1225:
-    /// the can's 11.5 cm half height and 7.5 mm, the middle of the window that held
-    /// (the can's height varies by 5 % per seed, +-6 mm at its top, which the operator
-    /// does not see).
-    pub grasp_above_centre_m: f64,
+    /// The grasp puts that point this far above the object's top, m. Default 0.0075:
+    /// the middle of the window that held the can (its height varies by 5 % per seed,
+    /// +-6 mm at its top, which the operator does not see).
+    pub grasp_above_top_m: f64,
     /// The pre-grasp pose and the retreat are this far back along the palm's back (the
     /// retreat also `lift_m` up), m. Default 0.08.
     pub approach_m: f64,
+    /// Care for tall objects left standing (the tower job): retreat straight up
+    /// (`approach_m` + `lift_m`) instead of back along the palm's back, whose sideways
+    /// part pulled a placed block over, and go back level to above the start before
+    /// descending to it, instead of straight, which swept the hand through the tower
+    /// standing higher than the start. Default false.
+    pub clear_tall_objects: bool,
     /// Closure of the power synergy for the grasp, (0, 1]. Default 1.
     pub grasp_closure: f64,
     /// How long closing or opening the hand takes, s. Default 2.5 (closed in 1 s, the
@@ -103,7 +147,11 @@ pub struct WatchingConfig {
     pub close_s: f64,
     /// Lift height, m. Default 0.08.
     pub lift_m: f64,
-    /// The object is let go this far above its resting height, m. Default 0.005.
+    /// An object carried onto another is lifted at least so high that its bottom
+    /// clears the other's top by this much, m. Default 0.03.
+    pub carry_clearance_m: f64,
+    /// The object is let go this far above its resting height (below: pressed onto
+    /// it), m. Default 0.005.
     pub release_above_m: f64,
     /// Peak speed of the palm in a submovement (at the motion scale), m/s. Default
     /// 0.12 (the arm's Cartesian limit is 0.2).
@@ -132,17 +180,18 @@ impl Default for WatchingConfig {
     fn default() -> Self {
         Self {
             reaction_delay_s: 0.2,
-            object: "can".to_owned(),
-            target_from_start_palm_xy_m: [0.1, 0.0],
+            placements: vec![Placement::pick_can()],
             robot_from_operator_rpy_deg: [0.0; 3],
             turn_to_face_object: false,
             turn_speed_deg_s: 14.0,
             object_in_palm_m: [0.0, -0.017, 0.075],
-            grasp_above_centre_m: 0.1225,
+            grasp_above_top_m: 0.0075,
             approach_m: 0.08,
+            clear_tall_objects: false,
             grasp_closure: 1.0,
             close_s: 2.5,
             lift_m: 0.08,
+            carry_clearance_m: 0.03,
             release_above_m: 0.005,
             peak_speed_m_s: 0.12,
             min_move_s: 0.5,
@@ -166,18 +215,6 @@ impl WatchingConfig {
             &[
                 ("reaction_delay_s", self.reaction_delay_s, 0.0, 5.0),
                 (
-                    "target_from_start_palm_xy_m[0]",
-                    self.target_from_start_palm_xy_m[0],
-                    -1.0,
-                    1.0,
-                ),
-                (
-                    "target_from_start_palm_xy_m[1]",
-                    self.target_from_start_palm_xy_m[1],
-                    -1.0,
-                    1.0,
-                ),
-                (
                     "robot_from_operator_rpy_deg[0]",
                     self.robot_from_operator_rpy_deg[0],
                     -180.0,
@@ -199,12 +236,13 @@ impl WatchingConfig {
                 ("object_in_palm_m[0]", self.object_in_palm_m[0], -0.3, 0.3),
                 ("object_in_palm_m[1]", self.object_in_palm_m[1], -0.3, 0.3),
                 ("object_in_palm_m[2]", self.object_in_palm_m[2], -0.3, 0.3),
-                ("grasp_above_centre_m", self.grasp_above_centre_m, -0.5, 0.5),
+                ("grasp_above_top_m", self.grasp_above_top_m, -0.5, 0.5),
                 ("approach_m", self.approach_m, 0.0, 0.5),
                 ("grasp_closure", self.grasp_closure, 0.05, 1.0),
                 ("close_s", self.close_s, 0.05, 10.0),
                 ("lift_m", self.lift_m, 0.01, 0.5),
-                ("release_above_m", self.release_above_m, 0.0, 0.1),
+                ("carry_clearance_m", self.carry_clearance_m, 0.0, 0.3),
+                ("release_above_m", self.release_above_m, -0.05, 0.1),
                 ("peak_speed_m_s", self.peak_speed_m_s, 0.005, 1.0),
                 ("min_move_s", self.min_move_s, 0.05, 10.0),
                 ("settle_s", self.settle_s, 0.0, 10.0),
@@ -214,8 +252,36 @@ impl WatchingConfig {
                 ("fine_tolerance_m", self.fine_tolerance_m, 1e-4, 0.2),
             ],
         )?;
-        if self.object.is_empty() {
-            return Err("operator_site.watching.object must name an object".into());
+        if self.placements.is_empty() {
+            return Err("operator_site.watching.placements: no object to move".into());
+        }
+        for (i, p) in self.placements.iter().enumerate() {
+            let field = format!("operator_site.watching.placements[{i}]");
+            if p.object.trim().is_empty() {
+                return Err(format!("{field}.object must name an object"));
+            }
+            let mut ranges = vec![("half_height_m", p.half_height_m, 1e-3, 0.5)];
+            match &p.onto {
+                Onto::Table {
+                    from_start_palm_xy_m: [x, y],
+                } => {
+                    ranges.push(("onto.table.from_start_palm_xy_m[0]", *x, -1.0, 1.0));
+                    ranges.push(("onto.table.from_start_palm_xy_m[1]", *y, -1.0, 1.0));
+                }
+                Onto::Object {
+                    name,
+                    half_height_m,
+                } => {
+                    if name.trim().is_empty() || *name == p.object {
+                        return Err(format!(
+                            "{field}.onto.object.name must name another object than {:?}, got {name:?}",
+                            p.object
+                        ));
+                    }
+                    ranges.push(("onto.object.half_height_m", *half_height_m, 1e-3, 0.5));
+                }
+            }
+            teleop_control::check_ranges(&field, &ranges)?;
         }
         if self.max_attempts == 0 {
             return Err("operator_site.watching.max_attempts must be >= 1".into());
@@ -475,8 +541,12 @@ pub struct WatchingOperator {
     clutch: bool,
     corrections: u32,
     start_palm: Option<Isometry3<f64>>,
+    /// Which placement is under way (index into the config's).
+    placement: usize,
+    /// Grasp attempts of this placement.
+    attempts_here: u32,
+    /// Where the placement's object stood when the operator went for it, z, m.
     object_rest_z_m: f64,
-    target_xy_m: [f64; 2],
     /// The phase's fixed goal (lift, retreat), world frame.
     fixed_goal: Option<Vector3<f64>>,
     decisions: Vec<Decision>,
@@ -544,8 +614,9 @@ impl WatchingOperator {
             clutch: false,
             corrections: 0,
             start_palm: None,
+            placement: 0,
+            attempts_here: 0,
             object_rest_z_m: f64::NAN,
-            target_xy_m: [f64::NAN; 2],
             fixed_goal: None,
             decisions: Vec::new(),
             counters: WatchingCounters::default(),
@@ -691,12 +762,59 @@ impl WatchingOperator {
         });
     }
 
-    /// The object's perceived position.
-    fn object(&self) -> Option<Vector3<f64>> {
+    /// The placement under way (the last once all are done).
+    fn current(&self) -> &Placement {
+        let last = self.cfg.placements.len().saturating_sub(1);
+        &self.cfg.placements[self.placement.min(last)]
+    }
+
+    /// Which placement is under way, from 0.
+    #[must_use]
+    pub fn placement(&self) -> usize {
+        self.placement
+    }
+
+    /// The object the placement under way moves.
+    #[must_use]
+    pub fn object_name(&self) -> &str {
+        &self.current().object
+    }
+
+    /// A named object's perceived position.
+    fn seen(&self, name: &str) -> Option<Vector3<f64>> {
         self.scene
             .as_ref()
-            .and_then(|s| s.object(&self.cfg.object))
+            .and_then(|s| s.object(name))
             .map(|p| p.translation.vector)
+    }
+
+    /// The object's perceived position.
+    fn object(&self) -> Option<Vector3<f64>> {
+        self.seen(&self.current().object)
+    }
+
+    /// Where the object goes, as perceived: the spot's x-y and the height its centre
+    /// rests at there.
+    fn target(&self) -> Option<([f64; 2], f64)> {
+        let p = self.current();
+        match &p.onto {
+            Onto::Table {
+                from_start_palm_xy_m: [x, y],
+            } => {
+                let start = self.start_palm?.translation.vector;
+                Some(([start.x + x, start.y + y], self.object_rest_z_m))
+            }
+            Onto::Object {
+                name,
+                half_height_m,
+            } => {
+                let below = self.seen(name)?;
+                Some((
+                    [below.x, below.y],
+                    below.z + half_height_m + p.half_height_m,
+                ))
+            }
+        }
     }
 
     /// Where the palm's origin goes to grasp the object as perceived, with the palm's
@@ -704,7 +822,8 @@ impl WatchingOperator {
     fn grasp_goal(&self) -> Option<Vector3<f64>> {
         let object = self.object()?;
         let palm = self.robot?.palm;
-        let centre = object + Vector3::z() * self.cfg.grasp_above_centre_m;
+        let above = self.current().half_height_m + self.cfg.grasp_above_top_m;
+        let centre = object + Vector3::z() * above;
         Some(centre - palm.rotation * Vector3::from(self.cfg.object_in_palm_m))
     }
 
@@ -839,16 +958,13 @@ impl WatchingOperator {
     }
 
     fn regrasp(&mut self, t_s: f64, why: &str) {
-        if self.counters.grasp_attempts >= u64::from(self.cfg.max_attempts) {
+        if self.attempts_here >= self.cfg.max_attempts {
             self.clutch = false;
             self.move_fingers(t_s, 0.0);
             self.enter(
                 t_s,
                 Phase::GaveUp,
-                format!(
-                    "{why}; {} attempts made, giving up",
-                    self.counters.grasp_attempts
-                ),
+                format!("{why}; {} attempts made, giving up", self.attempts_here),
             );
         } else {
             self.move_fingers(t_s, 0.0);
@@ -861,26 +977,21 @@ impl WatchingOperator {
     fn object_lost(&self) -> Option<String> {
         let object = self.object()?;
         let start = self.start_palm?.translation.vector;
+        let name = &self.current().object;
         if object.z < self.object_rest_z_m - LOST_BELOW_M {
             return Some(format!(
-                "the {} is {:.0} mm below where it stood (off the table)",
-                self.cfg.object,
+                "the {name} is {:.0} mm below where it stood (off the table)",
                 (self.object_rest_z_m - object.z) * 1e3
             ));
         }
         let far = (object - start).norm();
-        (far > REACH_M).then(|| {
-            format!(
-                "the {} is {:.0} mm away, out of reach",
-                self.cfg.object,
-                far * 1e3
-            )
-        })
+        (far > REACH_M).then(|| format!("the {name} is {:.0} mm away, out of reach", far * 1e3))
     }
 
     #[allow(clippy::too_many_lines)]
     fn decide(&mut self, t_s: f64, first_s: f64) {
         let c = self.cfg.clone();
+        let name = self.current().object.clone();
         if !matches!(
             self.phase,
             Phase::WaitingForView | Phase::Done | Phase::GaveUp
@@ -902,10 +1013,6 @@ impl WatchingOperator {
                 self.start_palm = Some(robot.palm);
                 self.object_rest_z_m = object.z;
                 let p = robot.palm.translation.vector;
-                self.target_xy_m = [
-                    p.x + c.target_from_start_palm_xy_m[0],
-                    p.y + c.target_from_start_palm_xy_m[1],
-                ];
                 self.clutch = true;
                 // The arm controller engages on the press: move a little later.
                 let go_s = t_s + 0.3;
@@ -927,7 +1034,7 @@ impl WatchingOperator {
                     format!(
                         "saw the palm at {:.3?} and the {} at {:.3?}; clutch pressed, turning the hand {:.0} deg to face it",
                         p.as_slice(),
-                        c.object,
+                        name,
                         object.as_slice(),
                         turn.to_degrees()
                     ),
@@ -949,7 +1056,7 @@ impl WatchingOperator {
                         "turned: the palm faces {:.0} deg below the horizontal, {:.0} deg from the {}",
                         (-n.z).asin().to_degrees(),
                         n.dot(&to).clamp(-1.0, 1.0).acos().to_degrees(),
-                        c.object
+                        name
                     ),
                 );
             }
@@ -988,6 +1095,7 @@ impl WatchingOperator {
                         .map(|r| r.palm.translation.vector)
                         .unwrap_or_default();
                     self.counters.grasp_attempts += 1;
+                    self.attempts_here += 1;
                     self.move_fingers(t_s, c.grasp_closure);
                     self.enter(
                         t_s,
@@ -995,13 +1103,13 @@ impl WatchingOperator {
                         format!(
                             "{}; closing (attempt {}): palm at {:.3?}, the {} at {:.3?}",
                             if touching {
-                                format!("the {} pushed {:.0} mm: touching", c.object, pushed * 1e3)
+                                format!("the {} pushed {:.0} mm: touching", name, pushed * 1e3)
                             } else {
                                 "at the grasp".to_owned()
                             },
-                            self.counters.grasp_attempts,
+                            self.attempts_here,
                             palm.as_slice(),
-                            c.object,
+                            name,
                             object.as_slice()
                         ),
                     );
@@ -1021,7 +1129,12 @@ impl WatchingOperator {
                 let goal = match (self.fixed_goal, self.robot) {
                     (Some(g), _) => g,
                     (None, Some(r)) => {
-                        let g = r.palm.translation.vector + Vector3::z() * c.lift_m;
+                        // High enough to carry it over what it goes onto.
+                        let Some((_, rest_z)) = self.target() else {
+                            return;
+                        };
+                        let over = rest_z - self.object_rest_z_m + c.carry_clearance_m;
+                        let g = r.palm.translation.vector + Vector3::z() * c.lift_m.max(over);
                         self.fixed_goal = Some(g);
                         g
                     }
@@ -1043,14 +1156,14 @@ impl WatchingOperator {
                             Phase::Carry,
                             format!(
                                 "the {} came along ({:.0} mm up); carrying",
-                                c.object,
+                                name,
                                 raised * 1e3
                             ),
                         );
                     } else {
                         self.regrasp(
                             t_s,
-                            &format!("the {} stayed behind ({:.0} mm up)", c.object, raised * 1e3),
+                            &format!("the {name} stayed behind ({:.0} mm up)", raised * 1e3),
                         );
                     }
                 }
@@ -1061,22 +1174,20 @@ impl WatchingOperator {
                 }
             }
             Phase::Carry | Phase::Lower => {
-                let (Some(robot), Some(object)) = (self.robot, self.object()) else {
+                let (Some(robot), Some(object), Some((target_xy, rest_z))) =
+                    (self.robot, self.object(), self.target())
+                else {
                     return;
                 };
                 if self.phase == Phase::Carry
                     && self.settled()
                     && object.z - self.object_rest_z_m < 0.25 * c.lift_m
                 {
-                    self.regrasp(t_s, &format!("the {} fell out of the hand", c.object));
+                    self.regrasp(t_s, &format!("the {name} fell out of the hand"));
                     return;
                 }
                 let p = robot.palm.translation.vector;
-                let shift = Vector3::new(
-                    self.target_xy_m[0] - object.x,
-                    self.target_xy_m[1] - object.y,
-                    0.0,
-                );
+                let shift = Vector3::new(target_xy[0] - object.x, target_xy[1] - object.y, 0.0);
                 if self.phase == Phase::Carry {
                     let z = self.fixed_goal.get_or_insert(p).z;
                     let goal = Vector3::new(p.x + shift.x, p.y + shift.y, z);
@@ -1084,7 +1195,7 @@ impl WatchingOperator {
                         self.enter(t_s, Phase::Lower, "over the target; lowering".to_owned());
                     }
                 } else {
-                    let down = object.z - self.object_rest_z_m - c.release_above_m;
+                    let down = object.z - rest_z - c.release_above_m;
                     let goal = Vector3::new(p.x + shift.x, p.y + shift.y, p.z - down);
                     // Down is where the object stands, not where the palm is.
                     let standing = self.settled() && down <= c.fine_tolerance_m;
@@ -1097,8 +1208,8 @@ impl WatchingOperator {
                             Phase::Release,
                             format!(
                                 "the {} {:.0} mm above its resting height, {:.0} mm from the target; opening",
-                                c.object,
-                                (object.z - self.object_rest_z_m) * 1e3,
+                                name,
+                                (object.z - rest_z) * 1e3,
                                 (Vector3::new(shift.x, shift.y, 0.0)).norm() * 1e3
                             ),
                         );
@@ -1115,6 +1226,11 @@ impl WatchingOperator {
                     (Some(g), ..) => g,
                     (None, Some(r), Some(back)) => {
                         // Back off the palm's face and up, clear of the object.
+                        let back = if c.clear_tall_objects {
+                            Vector3::z()
+                        } else {
+                            back
+                        };
                         let g = r.palm.translation.vector
                             + back * c.approach_m
                             + Vector3::z() * c.lift_m;
@@ -1124,6 +1240,33 @@ impl WatchingOperator {
                     _ => return,
                 };
                 if let Reach::Arrived = self.reach(t_s, goal, c.coarse_tolerance_m) {
+                    if self.placement + 1 < c.placements.len() {
+                        // The next object.
+                        self.placement += 1;
+                        let next = self.current().object.clone();
+                        let Some(object) = self.object() else {
+                            self.enter(
+                                t_s,
+                                Phase::GaveUp,
+                                format!("the {next} is not in view; giving up"),
+                            );
+                            self.clutch = false;
+                            return;
+                        };
+                        self.object_rest_z_m = object.z;
+                        self.attempts_here = 0;
+                        self.enter(
+                            t_s,
+                            Phase::Hover,
+                            format!(
+                                "clear; going for the {next} at {:.3?} (placement {} of {})",
+                                object.as_slice(),
+                                self.placement + 1,
+                                c.placements.len()
+                            ),
+                        );
+                        return;
+                    }
                     // Back to the start, turning the hand back on the way.
                     self.turn = Move {
                         from: self.turn.at(t_s),
@@ -1131,30 +1274,48 @@ impl WatchingOperator {
                         t0: t_s,
                         t1: t_s + self.turn.at(t_s).abs().to_degrees() / c.turn_speed_deg_s,
                     };
+                    let mut via = None;
                     if let (Some(start), Some(r)) = (self.start_palm, self.robot) {
-                        self.plan_move(t_s, start.translation.vector - r.palm.translation.vector);
+                        let (start, palm) = (start.translation.vector, r.palm.translation.vector);
+                        // Level to above the start first, when the palm is above it.
+                        let above = Vector3::new(start.x, start.y, palm.z);
+                        let goal =
+                            if c.clear_tall_objects && palm.z > start.z + c.coarse_tolerance_m {
+                                via = Some(above);
+                                above
+                            } else {
+                                start
+                            };
+                        self.plan_move(t_s, goal - palm);
                     }
                     self.enter(t_s, Phase::Return, "clear; going back".to_owned());
+                    self.fixed_goal = via;
                 }
             }
             Phase::Return => {
                 let Some(start) = self.start_palm else {
                     return;
                 };
+                if let Some(via) = self.fixed_goal {
+                    if let Reach::Arrived = self.reach(t_s, via, c.coarse_tolerance_m) {
+                        self.fixed_goal = None;
+                        self.corrections = 0;
+                        self.note(t_s, "above the start; going down to it".to_owned());
+                    }
+                    return;
+                }
                 if let Reach::Arrived =
                     self.reach(t_s, start.translation.vector, c.fine_tolerance_m)
                 {
                     self.clutch = false;
-                    let placed = self
-                        .object()
-                        .map(|o| {
-                            ((o.x - self.target_xy_m[0]).hypot(o.y - self.target_xy_m[1])) * 1e3
-                        })
-                        .unwrap_or(f64::NAN);
+                    let placed = match (self.object(), self.target()) {
+                        (Some(o), Some((xy, _))) => (o.x - xy[0]).hypot(o.y - xy[1]) * 1e3,
+                        _ => f64::NAN,
+                    };
                     self.enter(
                         t_s,
                         Phase::Done,
-                        format!("back at the start; clutch released (the {} seen {placed:.0} mm from the target)", c.object),
+                        format!("back at the start; clutch released (the {name} seen {placed:.0} mm from the target)"),
                     );
                 }
             }
@@ -1318,6 +1479,10 @@ mod tests {
         op: WatchingOperator,
         start: Vector3<f64>,
         can: Vector3<f64>,
+        /// More objects (name, centre, half height): the blocks of a tower.
+        others: Vec<(String, Vector3<f64>, f64)>,
+        /// Which of `others` is held.
+        holding: Option<usize>,
         palm: Vector3<f64>,
         /// The hand's turn as the robot has followed it.
         turn: UnitQuaternion<f64>,
@@ -1333,6 +1498,8 @@ mod tests {
     }
 
     const TABLE_CAN_Z: f64 = 0.5;
+    /// The table top under the can (23 cm tall).
+    const TABLE_TOP_Z: f64 = TABLE_CAN_Z - 0.115;
 
     impl Loop {
         fn new(views: bool, can_follows: bool) -> Self {
@@ -1345,6 +1512,8 @@ mod tests {
                 op: WatchingOperator::new(cfg, 1.0, 1.0).expect("valid"),
                 start,
                 can: Vector3::new(0.6, -0.05, TABLE_CAN_Z),
+                others: Vec::new(),
+                holding: None,
                 palm: start,
                 turn: UnitQuaternion::identity(),
                 flex: 0.0,
@@ -1363,12 +1532,42 @@ mod tests {
             Isometry3::from_parts(down.translation, down.rotation * self.turn)
         }
 
+        /// The other objects: one is held when the fingers are curled with the palm at
+        /// its grasp; let go, it drops onto the table or onto an object under it.
+        fn move_others(&mut self, palm: &Isometry3<f64>, grasp_in_palm: Vector3<f64>) {
+            let above_top = self.op.config().grasp_above_top_m;
+            let point = (palm * nalgebra::Point3::from(grasp_in_palm)).coords;
+            let centre = |half: f64| point - Vector3::z() * (half + above_top);
+            if self.flex < 0.2 {
+                if let Some(i) = self.holding.take() {
+                    let (_, p, half) = self.others[i].clone();
+                    let support = self
+                        .others
+                        .iter()
+                        .enumerate()
+                        .filter(|(j, (_, q, _))| *j != i && (q.xy() - p.xy()).norm() < 0.03)
+                        .map(|(_, (_, q, h))| q.z + h)
+                        .fold(TABLE_TOP_Z, f64::max);
+                    self.others[i].1.z = support + half;
+                }
+            } else if self.holding.is_none() && self.flex > 0.4 {
+                self.holding = self
+                    .others
+                    .iter()
+                    .position(|(_, p, half)| (centre(*half) - p).norm() < 0.02);
+            }
+            if let Some(i) = self.holding {
+                self.others[i].1 = centre(self.others[i].2);
+            }
+        }
+
         fn run(&mut self, seconds: f64) -> Vec<Decision> {
             let dt = 0.01;
             let mut log = Vec::new();
             let steps = (seconds / dt).round() as usize;
             let grasp_in_palm = Vector3::from(self.op.config().object_in_palm_m);
-            let above = self.op.config().grasp_above_centre_m;
+            let above =
+                self.op.config().placements[0].half_height_m + self.op.config().grasp_above_top_m;
             for k in 0..steps {
                 let t = k as f64 * dt;
                 let s = self.op.step(t);
@@ -1415,6 +1614,7 @@ mod tests {
                 let palm = self.palm_pose();
                 let grasp = palm * nalgebra::Point3::from(grasp_in_palm) - Vector3::z() * above;
                 let grasp = grasp.coords;
+                self.move_others(&palm, grasp_in_palm);
                 if self.flex > 0.4 && (grasp - self.can).norm() < 0.02 && self.can_follows {
                     self.held = true;
                 }
@@ -1437,7 +1637,13 @@ mod tests {
                     },
                 );
                 if self.views && k % 7 == 0 {
-                    self.op.perceive_scene(t, scene(capture, self.can));
+                    let mut seen = scene(capture, self.can);
+                    seen.objects.extend(
+                        self.others
+                            .iter()
+                            .map(|(n, p, _)| (n.clone(), Isometry3::translation(p.x, p.y, p.z))),
+                    );
+                    self.op.perceive_scene(t, seen);
                 }
             }
             log
@@ -1503,7 +1709,8 @@ mod tests {
         let side = WatchingConfig {
             turn_to_face_object: true,
             object_in_palm_m: [0.0, -0.052, 0.10],
-            grasp_above_centre_m: 0.04,
+            // 4 cm above the can's centre.
+            grasp_above_top_m: 0.04 - Placement::pick_can().half_height_m,
             ..WatchingConfig::default()
         };
         for (cfg, turn_deg) in [(WatchingConfig::default(), 0), (side, 90)] {
@@ -1525,8 +1732,13 @@ mod tests {
             ] {
                 assert!(phases.contains(&p.name()), "{p:?} missing: {phases:?}");
             }
-            let target =
-                lp.start.xy() + Vector2Like::from(lp.op.config().target_from_start_palm_xy_m);
+            let Onto::Table {
+                from_start_palm_xy_m,
+            } = lp.op.config().placements[0].onto
+            else {
+                panic!("the default job puts the can on the table");
+            };
+            let target = lp.start.xy() + Vector2Like::from(from_start_palm_xy_m);
             assert!(
                 (lp.can.xy() - target).norm() < 0.02,
                 "can at {:?}, target {target:?}",
@@ -1551,6 +1763,74 @@ mod tests {
     }
 
     type Vector2Like = nalgebra::Vector2<f64>;
+
+    #[test]
+    fn the_operator_stacks_one_block_on_another_then_a_third_on_those() {
+        // Three blocks on the table (the can stays out of the way): the middle one onto
+        // the base, the top one onto the middle one, each seen where it is.
+        let (hb, hm, ht) = (0.035, 0.05, 0.045);
+        let cfg = WatchingConfig {
+            placements: vec![
+                Placement {
+                    object: "middle".into(),
+                    half_height_m: hm,
+                    onto: Onto::Object {
+                        name: "base".into(),
+                        half_height_m: hb,
+                    },
+                },
+                Placement {
+                    object: "top".into(),
+                    half_height_m: ht,
+                    onto: Onto::Object {
+                        name: "middle".into(),
+                        half_height_m: hm,
+                    },
+                },
+            ],
+            ..WatchingConfig::default()
+        };
+        let mut lp = Loop::with(cfg, true, false);
+        lp.can = Vector3::new(0.3, 0.3, TABLE_CAN_Z);
+        let base = Vector3::new(0.7, -0.2, TABLE_TOP_Z + hb);
+        lp.others = vec![
+            ("base".into(), base, hb),
+            (
+                "middle".into(),
+                Vector3::new(0.6, -0.05, TABLE_TOP_Z + hm),
+                hm,
+            ),
+            ("top".into(), Vector3::new(0.6, -0.35, TABLE_TOP_Z + ht), ht),
+        ];
+        let log = lp.run(180.0);
+        assert_eq!(lp.op.phase(), Phase::Done, "{log:#?}");
+        assert_eq!(lp.op.placement(), 1);
+        assert_eq!(lp.op.counters().grasp_attempts, 2, "{log:#?}");
+        let middle = lp.others[1].1;
+        let top = lp.others[2].1;
+        assert!(
+            (middle.xy() - base.xy()).norm() < 0.01,
+            "middle {middle:?} on base {base:?}"
+        );
+        assert!(
+            (middle.z - (base.z + hb + hm)).abs() < 1e-9,
+            "middle on the base: {middle:?}"
+        );
+        assert!(
+            (top.xy() - middle.xy()).norm() < 0.01,
+            "top {top:?} on middle {middle:?}"
+        );
+        assert!(
+            (top.z - (middle.z + hm + ht)).abs() < 1e-9,
+            "top on the middle: {top:?}"
+        );
+        assert!(
+            log.iter().any(|d| d.what.contains("going for the top")),
+            "{log:#?}"
+        );
+        assert!((lp.palm - lp.start).norm() < 0.01, "palm back");
+        assert!(!lp.op.step(180.0).under_way, "clutch released at the end");
+    }
 
     #[test]
     fn a_grasp_that_never_holds_is_retried_then_given_up() {
