@@ -498,6 +498,10 @@ pub struct Recorder {
     /// The capture stamp of the wrist pose the arm's newest engagement took as its
     /// reference (its status counter), ns.
     arm_engaged_from_ns: Option<u64>,
+    /// A new engagement the arm controller reported (its wrist pose's stamp, the
+    /// status's stamp, s) not yet applied: the clutch press or the truth at that stamp
+    /// had not been taken in yet (the statuses come in beside `poll`).
+    pending_engagement: Option<(u64, f64)>,
     /// The newest PR2 palm positions by stamp, s (for the arm's reference at its
     /// engagement).
     recent_palms: std::collections::VecDeque<(f64, Vector3<f64>)>,
@@ -573,6 +577,7 @@ impl Recorder {
             pr2_following: Vec::new(),
             arm_active: false,
             arm_engaged_from_ns: None,
+            pending_engagement: None,
             recent_palms: std::collections::VecDeque::new(),
             pr2_delay: DelayFit::default(),
             camera_delay: DelayFit::default(),
@@ -648,10 +653,15 @@ impl Recorder {
                         self.report.clutch_engagements += 1;
                     }
                 }
-                (false, Some(_)) => self.engaged = None,
+                (false, Some(_)) => {
+                    self.engaged = None;
+                    // An engagement the controller reported for this one is moot now.
+                    self.pending_engagement = None;
+                }
                 _ => {}
             }
         }
+        self.apply_engagement();
         while let Some(r) = self.pr2.try_recv() {
             let t = secs(&r.msg.header.stamp);
             self.stages[STAGE_PR2].add(r.receive_time_s(), t);
@@ -771,9 +781,23 @@ impl Recorder {
             return;
         }
         self.arm_engaged_from_ns = Some(from_ns);
+        self.pending_engagement = Some((from_ns, secs(&s.header.stamp)));
+        self.apply_engagement();
+    }
+
+    /// Re-anchors the engagement under way on the arm controller's reported references
+    /// once the press and the truth at its wrist pose's stamp are in.
+    fn apply_engagement(&mut self) {
+        let Some((from_ns, engaged_s)) = self.pending_engagement else {
+            return;
+        };
         #[allow(clippy::cast_precision_loss)]
-        let human = self.truth_at(from_ns as f64 * 1e-9);
-        let engaged_s = secs(&s.header.stamp);
+        let from_s = from_ns as f64 * 1e-9;
+        // The truth must reach past the stamp (else `truth_at` holds its newest).
+        if self.truth.last().is_none_or(|(t, _)| *t < from_s) {
+            return;
+        }
+        let human = self.truth_at(from_s);
         let palm = self
             .recent_palms
             .iter()
@@ -784,6 +808,7 @@ impl Recorder {
             eng.human_ref = human.translation.vector;
             eng.robot_ref = palm;
             self.report.arm_reference_engagements += 1;
+            self.pending_engagement = None;
         }
     }
 
