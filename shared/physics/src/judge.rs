@@ -92,6 +92,15 @@ mod defaults {
 }
 
 impl PickPlaceConfig {
+    fn clock_limits(&self) -> ClockLimits {
+        ClockLimits {
+            table_top_z_m: self.table_top_z_m,
+            fallen_below_table_m: self.fallen_below_table_m,
+            time_limit_s: self.time_limit_s,
+            start_motion_rad: self.start_motion_rad,
+        }
+    }
+
     /// A job moving `object` into `target` above a table top at `table_top_z_m`, judged
     /// with the default tolerances.
     #[must_use]
@@ -302,15 +311,16 @@ impl JobClock {
         Ok(())
     }
 
-    /// One checked observation: a failure it sees (fallen object, time limit), else the
-    /// arm's largest joint distance from its start, rad.
+    /// One checked observation: the arm's largest joint distance from its start, rad;
+    /// `None` with a failure it sees (fallen object, time limit) written into `verdict`.
     fn observe(
         &mut self,
+        verdict: &mut Verdict,
         time_s: f64,
         arm_rad: &[f64],
         objects: &[(String, Isometry3<f64>)],
         limits: &ClockLimits,
-    ) -> Result<f64, Verdict> {
+    ) -> Option<f64> {
         self.last_time_s = Some(time_s);
         let start = self.start.get_or_insert_with(|| Start {
             time_s,
@@ -320,18 +330,20 @@ impl JobClock {
             .iter()
             .find(|(_, p)| p.translation.z < limits.table_top_z_m - limits.fallen_below_table_m)
         {
-            return Err(Verdict::Failed {
+            *verdict = Verdict::Failed {
                 failure: Failure::FellOffTable {
                     object: name.clone(),
                 },
                 at_s: time_s,
-            });
+            };
+            return None;
         }
         if time_s - start.time_s > limits.time_limit_s {
-            return Err(Verdict::Failed {
+            *verdict = Verdict::Failed {
                 failure: Failure::TimedOut,
                 at_s: time_s,
-            });
+            };
+            return None;
         }
         let away_rad = arm_rad
             .iter()
@@ -341,27 +353,7 @@ impl JobClock {
         if self.moved_at_s.is_none() && away_rad > limits.start_motion_rad {
             self.moved_at_s = Some(time_s);
         }
-        Ok(away_rad)
-    }
-}
-
-impl JobClock {
-    /// [`JobClock::observe`], a failure it sees written into `verdict` (then `None`).
-    fn observe_into(
-        &mut self,
-        verdict: &mut Verdict,
-        time_s: f64,
-        arm_rad: &[f64],
-        objects: &[(String, Isometry3<f64>)],
-        limits: &ClockLimits,
-    ) -> Option<f64> {
-        match self.observe(time_s, arm_rad, objects, limits) {
-            Ok(away) => Some(away),
-            Err(failed) => {
-                *verdict = failed;
-                None
-            }
-        }
+        Some(away_rad)
     }
 }
 
@@ -454,15 +446,10 @@ impl PickPlaceJudge {
             self.clock.last_time_s = Some(time_s);
             return Ok(&self.verdict);
         }
-        let limits = ClockLimits {
-            table_top_z_m: c.table_top_z_m,
-            fallen_below_table_m: c.fallen_below_table_m,
-            time_limit_s: c.time_limit_s,
-            start_motion_rad: c.start_motion_rad,
-        };
+        let limits = c.clock_limits();
         let Some(away_rad) =
             self.clock
-                .observe_into(&mut self.verdict, time_s, arm_rad, objects, &limits)
+                .observe(&mut self.verdict, time_s, arm_rad, objects, &limits)
         else {
             return Ok(&self.verdict);
         };
@@ -558,6 +545,15 @@ mod tower_defaults {
 }
 
 impl TowerConfig {
+    fn clock_limits(&self) -> ClockLimits {
+        ClockLimits {
+            table_top_z_m: self.table_top_z_m,
+            fallen_below_table_m: self.fallen_below_table_m,
+            time_limit_s: self.time_limit_s,
+            start_motion_rad: self.start_motion_rad,
+        }
+    }
+
     /// A tower of `blocks` (bottom up, with their half heights) on a table top at
     /// `table_top_z_m`, judged with the default tolerances.
     #[must_use]
@@ -763,15 +759,10 @@ impl TowerJudge {
             self.clock.last_time_s = Some(time_s);
             return Ok(&self.verdict);
         }
-        let limits = ClockLimits {
-            table_top_z_m: c.table_top_z_m,
-            fallen_below_table_m: c.fallen_below_table_m,
-            time_limit_s: c.time_limit_s,
-            start_motion_rad: c.start_motion_rad,
-        };
+        let limits = c.clock_limits();
         let Some(away_rad) =
             self.clock
-                .observe_into(&mut self.verdict, time_s, arm_rad, objects, &limits)
+                .observe(&mut self.verdict, time_s, arm_rad, objects, &limits)
         else {
             return Ok(&self.verdict);
         };

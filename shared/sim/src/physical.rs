@@ -811,6 +811,21 @@ impl PickSceneConfig {
     /// # Errors
     /// Offsets that are not finite and positive; a robot model without the palm.
     pub fn scene(&self) -> Result<SceneSpec, SimError> {
+        let (table, p) = self.table()?;
+        let top = table.top_z_m;
+        let d = self.object_offset_m;
+        Ok(SceneSpec {
+            table: Some(table),
+            objects: vec![
+                teleop_physics::scene::can("can", [p.x, p.y + d], top),
+                teleop_physics::scene::cube("cube", 0.05, [p.x, p.y - d], top),
+            ],
+        })
+    }
+
+    /// The table under the palm of the starting posture, and that palm's position, m.
+    /// The scene's offsets checked.
+    fn table(&self) -> Result<(teleop_physics::TableSpec, Vector3<f64>), SimError> {
         for (field, value) in [
             ("pick.table_below_palm_m", self.table_below_palm_m),
             ("pick.object_offset_m", self.object_offset_m),
@@ -837,14 +852,7 @@ impl PickSceneConfig {
             top_z_m: top,
             ..teleop_physics::TableSpec::default()
         };
-        let d = self.object_offset_m;
-        Ok(SceneSpec {
-            table: Some(table),
-            objects: vec![
-                teleop_physics::scene::can("can", [p.x, p.y + d], top),
-                teleop_physics::scene::cube("cube", 0.05, [p.x, p.y - d], top),
-            ],
-        })
+        Ok((table, p))
     }
 
     /// The palm's position at the starting posture, m.
@@ -935,9 +943,8 @@ impl PickSceneConfig {
     /// # Errors
     /// As [`Self::scene`]; a block whose sizes or place are not finite and positive.
     pub fn tower_scene(&self, tower: &TowerJobConfig) -> Result<SceneSpec, SimError> {
-        let table = self.scene()?.table;
-        let top = table.map_or(0.0, |t| t.top_z_m);
-        let p = self.palm_m()?;
+        let (table, p) = self.table()?;
+        let top = table.top_z_m;
         let objects = tower
             .blocks
             .iter()
@@ -972,7 +979,10 @@ impl PickSceneConfig {
                 })
             })
             .collect::<Result<Vec<_>, _>>()?;
-        Ok(SceneSpec { table, objects })
+        Ok(SceneSpec {
+            table: Some(table),
+            objects,
+        })
     }
 
     /// The judge's settings for the tower job in this scene.
